@@ -1,0 +1,1 @@
+"""Shared contract of the flyby emulator: bus keys, messages, scenario schema, clock and launcher."""

@@ -1,0 +1,64 @@
+"""Clocks: the only module that reads the machine's time.
+
+Everything else takes a ``Clock`` as an argument (as trio's ``Clock`` and SimPy's ``Environment`` do), so
+lock-step runs use ``SimClock`` and never depend on how fast the machine is, while real-time runs and
+watchdogs use ``WallClock``.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Protocol
+
+
+class Clock(Protocol):
+    """A source of seconds that never goes backwards."""
+
+    def now(self) -> float:
+        """Current time, s."""
+        ...
+
+    def sleep_until(self, t: float) -> None:
+        """Return once ``now() >= t``."""
+        ...
+
+
+class SimClock:
+    """A clock that only moves when told to."""
+
+    def __init__(self, start: float = 0.0) -> None:
+        self._t = start
+
+    def now(self) -> float:
+        """Current simulated time, s."""
+        return self._t
+
+    def advance(self, dt: float) -> float:
+        """Move forward by ``dt`` >= 0 s and return the new time."""
+        if dt < 0:
+            raise ValueError(f"dt must be >= 0, got {dt}")
+        self._t += dt
+        return self._t
+
+    def sleep_until(self, t: float) -> None:
+        """Jump forward to ``t`` (never backwards)."""
+        self._t = max(self._t, t)
+
+
+class WallClock:
+    """Monotonic wall time, s since an arbitrary origin."""
+
+    def now(self) -> float:
+        """Current monotonic time, s."""
+        return time.monotonic()
+
+    def sleep_until(self, t: float) -> None:
+        """Sleep until the monotonic clock reaches ``t``."""
+        dt = t - time.monotonic()
+        if dt > 0:
+            time.sleep(dt)
+
+
+def utc_stamp() -> str:
+    """Local wall time as a compact UTC stamp for run-folder names (YYYYmmdd-HHMMSS)."""
+    return time.strftime("%Y%m%d-%H%M%S", time.gmtime())

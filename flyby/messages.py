@@ -1,0 +1,156 @@
+"""Messages between the nodes: one definition each, with a version field.
+
+A message travels as ``[u32 header length][header JSON][blob]``: the header is the pydantic model as JSON,
+the blob carries bulk data (camera pixels) untouched, so a 2 MB frame is never base64-encoded.
+A receiver that cannot decode a message gets a ``DecodeError`` naming the message type and what was wrong.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Literal, TypeVar
+
+from pydantic import ConfigDict, Field, ValidationError
+
+from flyby.errors import DecodeError
+from flyby.model import Frozen
+
+BUS_VERSION = 1
+_HEADER = struct.Struct(">I")
+
+
+class Message(Frozen):
+    """Base of every bus message; bytes fields travel as base64 inside the JSON header."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", ser_json_bytes="base64", val_json_bytes="base64")
+    version: Literal[1] = BUS_VERSION
+
+
+class SensorData(Frozen):
+    """Sensor readings of one control period, as the on-board hardware sees them."""
+
+    star_tracker_q: tuple[float, float, float, float] | None = Field(
+        description="attitude body->inertial, scalar-last; None during an outage"
+    )
+    gyro_rad_s: tuple[float, float, float]
+    wheel_speed_rad_s: tuple[float, ...]
+
+
+class FrameMeta(Frozen):
+    """Metadata of a camera frame whose pixels travel in the message blob (uint16, row-major)."""
+
+    frame_id: int = Field(ge=0)
+    obt_s: float = Field(description="on-board time of the middle of the exposure, s")
+    width: int = Field(gt=0)
+    height: int = Field(gt=0)
+    bit_depth: int = Field(ge=8, le=16)
+    exposure_s: float = Field(gt=0)
+
+
+class FrameRequest(Frozen):
+    """The OBSW asks for a frame to be exposed at the start of the next control period."""
+
+    exposure_s: float = Field(gt=0)
+
+
+class StepRequest(Message):
+    """Universe -> OBSW: one control period begins; here is what the hardware reads."""
+
+    step: int = Field(ge=0)
+    obt_s: float
+    sensors: SensorData
+    uplink: tuple[bytes, ...] = Field(default=(), description="telecommand packets received this period")
+    frame: FrameMeta | None = None
+
+
+class StepReply(Message):
+    """OBSW -> universe: actuator commands for the period that began with ``step``."""
+
+    step: int = Field(ge=0)
+    wheel_torque_nm: tuple[float, ...]
+    frame_request: FrameRequest | None = None
+    downlink: tuple[bytes, ...] = Field(default=(), description="telemetry packets sent this period")
+
+
+class TruthRecord(Frozen):
+    """Simulation truth at one control period, sent to ground for the report (never to the OBSW)."""
+
+    t_s: float
+    obt_s: float
+    q: tuple[float, float, float, float]
+    omega_rad_s: tuple[float, float, float]
+    wheel_momentum_nms: tuple[float, ...]
+    wheel_torque_nm: tuple[float, ...]
+    pointing_error_rad: float
+    target_in_fov: bool
+    range_m: float
+    theta_rad: float
+    phase_angle_deg: float
+
+
+class GroundStep(Message):
+    """Universe -> ground: UTC has advanced; here is the telemetry the antenna received."""
+
+    step: int = Field(ge=0)
+    utc_s: float = Field(description="true time, s after the scenario epoch")
+    downlink: tuple[bytes, ...] = ()
+    truth: tuple[TruthRecord, ...] = ()
+
+
+class GroundReply(Message):
+    """Ground -> universe: telecommands radiated during this ground step."""
+
+    step: int = Field(ge=0)
+    uplink: tuple[bytes, ...] = ()
+
+
+class Status(Message):
+    """Progress of a node, for people watching a run."""
+
+    node: str
+    sim_time_s: float
+    real_time_factor: float | None = None
+    mode: str | None = None
+    text: str = ""
+
+
+class Shutdown(Message):
+    """A node is stopping the run; ``failed`` says whether it ended in error."""
+
+    node: str
+    reason: str
+    sim_time_s: float | None = None
+    failed: bool = False
+
+
+class OperatorCommand(Message):
+    """An operator's request to the ground node (``flyby ground``)."""
+
+    action: Literal["send", "upload_trajectory", "upload_timeline"]
+    payload: bytes = Field(description="a telecommand packet, or a trajectory/timeline file's content")
+    name: str = ""
+
+
+M = TypeVar("M", bound=Message)
+
+
+def encode(msg: Message, blob: bytes = b"") -> bytes:
+    """Serialise a message and its optional blob."""
+    header = msg.model_dump_json().encode()
+    return _HEADER.pack(len(header)) + header + blob
+
+
+def decode(kind: type[M], data: bytes) -> tuple[M, bytes]:
+    """Parse bytes into a message of type ``kind`` and its blob, or raise DecodeError."""
+    if len(data) < _HEADER.size:
+        raise DecodeError(f"{kind.__name__}: {len(data)} bytes is shorter than the {_HEADER.size}-byte header")
+    (n,) = _HEADER.unpack_from(data)
+    if _HEADER.size + n > len(data):
+        raise DecodeError(f"{kind.__name__}: header says {n} bytes but only {len(data) - _HEADER.size} follow")
+    try:
+        msg = kind.model_validate_json(data[_HEADER.size : _HEADER.size + n])
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        where = ".".join(str(p) for p in first["loc"]) or "(message)"
+        raise DecodeError(f"{kind.__name__}: {where}: {first['msg']} ({exc.error_count()} error(s))") from None
+    return msg, data[_HEADER.size + n :]

@@ -1,0 +1,83 @@
+"""A scenario: one YAML file that fixes everything a run depends on, seed included.
+
+Loading turns every problem into a line that names its path in the file
+(``universe.camera.fov_deg: must be > 0``) so a user can fix the file in one pass.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import Field, ValidationError
+
+from flyby.errors import ScenarioError
+from flyby.model import Frozen
+from ground.config import GroundConfig
+from obsw.config import ObswConfig
+from universe.config import UniverseConfig
+
+
+class BusConfig(Frozen):
+    """How the nodes find each other and how long they wait before declaring a peer dead."""
+
+    reply_timeout_s: float = Field(10.0, gt=0, description="longest wait for a peer's answer to a step, wall s")
+    startup_timeout_s: float = Field(30.0, gt=0, description="longest wait for all nodes to come up, wall s")
+    multicast_scouting: bool = Field(False, description="let Zenoh discover peers by multicast")
+
+
+class Scenario(Frozen):
+    """The root of a scenario file."""
+
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$", description="short name, used in run folders")
+    description: str = ""
+    seed: int = Field(0, ge=0, description="seed of every random draw of the run")
+    epoch_utc: str = Field(
+        "2022-09-26T23:14:24Z", description="UTC of true time zero (default: the DART impact)"
+    )
+    universe: UniverseConfig = UniverseConfig()
+    obsw: ObswConfig = ObswConfig()
+    ground: GroundConfig = GroundConfig()
+    bus: BusConfig = BusConfig()
+
+
+def _message(err: dict[str, Any]) -> str:
+    """Turn one pydantic error into 'path: message'."""
+    loc = ".".join(str(p) for p in err["loc"]) or "(file)"
+    msg = err["msg"]
+    if err["type"] == "extra_forbidden":
+        msg = "unknown field"
+    elif err["type"] in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
+        op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
+        bound = next(iter(err["ctx"].values()))
+        msg = f"must be {op[err['type']]} {bound:g}" if isinstance(bound, float) else f"must be {op[err['type']]} {bound}"
+    elif msg.startswith("Value error, "):
+        msg = msg[len("Value error, ") :]
+    return f"{loc}: {msg}"
+
+
+def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
+    """Validate parsed YAML into a Scenario, or raise ScenarioError listing every problem."""
+    if not isinstance(data, dict):
+        raise ScenarioError(source, ["(file): must be a mapping of fields, got " + type(data).__name__])
+    try:
+        return Scenario.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError(source, [_message(e) for e in exc.errors()]) from None
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ScenarioError(str(p), [f"(file): cannot read: {exc.strerror}"]) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "(file)"
+        raise ScenarioError(str(p), [f"{where}: not valid YAML: {getattr(exc, 'problem', exc)}"]) from None
+    return scenario_from_dict(data, str(p))

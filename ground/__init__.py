@@ -1,0 +1,1 @@
+"""Ground segment: uploads, telemetry archive and reports."""

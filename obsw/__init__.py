@@ -1,0 +1,1 @@
+"""On-board software emulator: pure flight logic plus a thin Zenoh adapter (obsw.node)."""

@@ -1,0 +1,50 @@
+"""Bus messages round-trip exactly, and a bad message gives a DecodeError naming what was wrong."""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from flyby.errors import DecodeError
+from flyby.messages import SensorData, StepReply, StepRequest, decode, encode
+
+finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
+
+
+@given(
+    step=st.integers(0, 2**40),
+    obt=finite,
+    gyro=st.tuples(finite, finite, finite),
+    uplink=st.lists(st.binary(max_size=64), max_size=4).map(tuple),
+    blob=st.binary(max_size=256),
+)
+def test_step_request_round_trips(step: int, obt: float, gyro: tuple, uplink: tuple, blob: bytes) -> None:
+    """decode(encode(m, blob)) gives back m and blob exactly."""
+    msg = StepRequest(
+        step=step, obt_s=obt, sensors=SensorData(star_tracker_q=None, gyro_rad_s=gyro, wheel_speed_rad_s=(1.0,)),
+        uplink=uplink,
+    )
+    back, b = decode(StepRequest, encode(msg, blob))
+    assert back == msg
+    assert b == blob
+
+
+def test_truncated_message_names_type() -> None:
+    """A message shorter than its header length is refused with the message type named."""
+    data = encode(StepReply(step=1, wheel_torque_nm=(0.0, 0.0, 0.0)))
+    with pytest.raises(DecodeError, match="StepReply: header says"):
+        decode(StepReply, data[:10])
+
+
+def test_wrong_version_names_field() -> None:
+    """A message of another bus version is refused, naming the version field."""
+    data = encode(StepReply(step=1, wheel_torque_nm=(0.0,))).replace(b'"version":1', b'"version":7')
+    with pytest.raises(DecodeError, match="StepReply: version"):
+        decode(StepReply, data)
+
+
+def test_garbage_is_refused() -> None:
+    """Random bytes are a DecodeError, never another exception."""
+    with pytest.raises(DecodeError):
+        decode(StepReply, b"\x00\x00\x00\x05hello")

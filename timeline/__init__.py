@@ -1,0 +1,1 @@
+"""Command timelines: file formats, command definitions and conversion to on-board time."""

@@ -1,0 +1,203 @@
+"""Configuration of the universe simulator: the truth the flight software is judged against.
+
+Every number carries its unit in its name or description, a default and the source of that default.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, field_validator
+
+from flyby.model import Frozen
+
+Vec3 = tuple[float, float, float]
+
+
+class FlybyConfig(Frozen):
+    """True flyby geometry: straight-line relative motion about the Didymos barycentre."""
+
+    ca_time_s: float = Field(
+        168.0,
+        description="true time of closest approach, s after the scenario epoch "
+        "(LICIACube flew by about 168 s after the DART impact)",
+    )
+    ca_distance_km: float = Field(55.0, gt=0, description="true C/A distance, km (paper: 55 km)")
+    speed_km_s: float = Field(7.0, gt=0, description="relative speed, km/s (paper: ~7 km/s)")
+    approach_direction: Vec3 = Field(
+        (1.0, 0.0, 0.0),
+        description="direction of the spacecraft velocity relative to Didymos, inertial frame (normalised)",
+    )
+    ca_direction: Vec3 = Field(
+        (0.0, 1.0, 0.0),
+        description="direction from Didymos to the spacecraft at C/A, inertial frame "
+        "(made orthogonal to approach_direction)",
+    )
+
+    @field_validator("approach_direction", "ca_direction")
+    @classmethod
+    def _nonzero(cls, v: Vec3) -> Vec3:
+        if sum(c * c for c in v) < 1e-12:
+            raise ValueError("must be a non-zero vector")
+        return v
+
+
+class UncertaintyConfig(Frozen):
+    """One-sigma knowledge errors of the trajectory that ground believes (drawn with the seed)."""
+
+    ca_time_sigma_s: float = Field(10.0, ge=0, description="one-sigma error of the C/A time, s")
+    ca_distance_sigma_km: float = Field(5.0, ge=0, description="one-sigma error of the C/A distance, km")
+    ca_time_offset_sigma: float | None = Field(
+        None,
+        description="if set, the ground nominal is truth + this many sigmas in C/A time instead of a random draw",
+    )
+    ca_distance_offset_sigma: float | None = Field(
+        None,
+        description="if set, the ground nominal is truth + this many sigmas in C/A distance instead of a random draw",
+    )
+
+
+class BodiesConfig(Frozen):
+    """Didymos and Dimorphos (paper: 780 m and 164 m; Dimorphos orbit 1.19 km, 11.92 h)."""
+
+    didymos_diameter_m: float = Field(780.0, gt=0, description="mean diameter of Didymos, m (paper)")
+    dimorphos_diameter_m: float = Field(164.0, gt=0, description="mean diameter of Dimorphos, m (paper)")
+    orbit_radius_m: float = Field(1190.0, gt=0, description="Dimorphos orbit radius, m (Naidu et al. 2020)")
+    orbit_period_h: float = Field(11.92, gt=0, description="Dimorphos orbital period, h (pre-impact)")
+    orbit_phase_deg: float = Field(0.0, description="Dimorphos orbital phase at the epoch, deg")
+    mass_ratio: float = Field(0.0093, ge=0, description="Dimorphos/Didymos mass ratio (Naidu et al. 2020)")
+    sun_direction: Vec3 = Field(
+        (-0.5, 0.5, 0.0),
+        description="direction from the asteroid to the Sun, inertial frame (normalised); sets the phase angle",
+    )
+    impact_time_s: float = Field(0.0, description="DART impact time, s after the epoch; the plume starts here")
+
+
+class WheelConfig(Frozen):
+    """Reaction wheels (paper: 0.007 Nm, 0.1 Nms)."""
+
+    layout: Literal["orthogonal", "pyramid"] = Field("orthogonal", description="three orthogonal or four in a pyramid")
+    pyramid_angle_deg: float = Field(54.7356, gt=0, lt=90, description="pyramid wheel-axis elevation, deg")
+    max_torque_nm: float = Field(0.007, gt=0, description="torque limit per wheel, N m (paper)")
+    max_momentum_nms: float = Field(0.1, gt=0, description="momentum limit per wheel, N m s (paper)")
+    inertia_kgm2: float = Field(
+        1.0e-4, gt=0, description="wheel rotor inertia about its axis, kg m^2 (a CubeSat RW of 0.1 Nms at ~9500 rpm)"
+    )
+    viscous_friction_nms: float = Field(
+        1.0e-7, ge=0, description="viscous friction coefficient, N m per rad/s (typical small RW)"
+    )
+    coulomb_friction_nm: float = Field(1.0e-5, ge=0, description="Coulomb friction torque, N m (typical small RW)")
+
+
+class SpacecraftConfig(Frozen):
+    """Rigid 6U CubeSat (paper: about 14 kg)."""
+
+    mass_kg: float = Field(14.0, gt=0, description="mass, kg (paper)")
+    inertia_kgm2: tuple[Vec3, Vec3, Vec3] = Field(
+        ((0.152, 0.0, 0.0), (0.0, 0.117, 0.0), (0.0, 0.0, 0.058)),
+        description="inertia matrix about the centre of mass in body axes, kg m^2 "
+        "(uniform 14 kg box of 0.1 x 0.2 x 0.3 m)",
+    )
+    wheels: WheelConfig = WheelConfig()
+    initial_attitude_error_deg: float = Field(
+        0.5, ge=0, description="initial pointing error about a seeded random axis, deg"
+    )
+    initial_rate_deg_s: Vec3 = Field((0.0, 0.0, 0.0), description="initial body rate, deg/s")
+
+
+class StarTrackerConfig(Frozen):
+    """Star tracker (defaults: a CubeSat-class unit such as the Blue Canyon NST)."""
+
+    noise_arcsec: Vec3 = Field((6.0, 6.0, 40.0), description="one-sigma white noise per body axis, arcsec")
+    bias_arcsec: Vec3 = Field((0.0, 0.0, 0.0), description="constant bias per body axis, arcsec")
+    rate_hz: float = Field(10.0, gt=0, description="update rate, Hz")
+
+
+class GyroConfig(Frozen):
+    """Gyro (defaults: a MEMS CubeSat IMU class)."""
+
+    arw_deg_sqrt_h: float = Field(0.15, ge=0, description="angle random walk, deg/sqrt(h)")
+    bias_instability_deg_h: float = Field(1.0, ge=0, description="bias instability, deg/h")
+    initial_bias_deg_h: Vec3 = Field((0.0, 0.0, 0.0), description="initial bias per axis, deg/h")
+
+
+class SensorsConfig(Frozen):
+    """Attitude sensors and wheel tachometers."""
+
+    star_tracker: StarTrackerConfig = StarTrackerConfig()
+    gyro: GyroConfig = GyroConfig()
+    wheel_speed_noise_rad_s: float = Field(0.01, ge=0, description="one-sigma wheel speed reading noise, rad/s")
+
+
+class CameraConfig(Frozen):
+    """Narrow-angle camera (paper: 2.9 deg horizontal FOV; frames 1024x1024 or 2048x2048, 12-bit)."""
+
+    fov_deg: float = Field(2.9, gt=0, lt=90, description="horizontal field of view, deg (paper)")
+    resolution_px: Literal[1024, 2048] = Field(1024, description="frame side, px (paper)")
+    bit_depth: int = Field(12, ge=8, le=16, description="bits per pixel (paper: 12)")
+    exposure_s: float = Field(0.01, gt=0, description="exposure time, s")
+    frame_period_s: float = Field(1.0, gt=0, description="default time between frames, s")
+    boresight_body: Vec3 = Field((0.0, 0.0, 1.0), description="camera boresight in body axes")
+
+
+class OscillatorConfig(Frozen):
+    """On-board oscillator: maps true time to on-board time (OBT)."""
+
+    initial_offset_s: float = Field(0.0, description="OBT minus true time at the epoch, s")
+    drift_ppm: float = Field(0.0, description="frequency error, parts per million")
+    drift_rate_ppm_per_day: float = Field(0.0, description="change of the frequency error, ppm per day")
+    jitter_s: float = Field(0.0, ge=0, description="one-sigma white jitter of each OBT reading, s")
+
+
+class FaultConfig(Frozen):
+    """A named, time-bounded fault injected by the universe."""
+
+    kind: Literal[
+        "frame_lost",
+        "frame_blank",
+        "frame_saturated",
+        "star_tracker_outage",
+        "gyro_bias_step",
+        "wheel_stuck",
+        "wheel_failed",
+        "plume_brightening",
+        "clock_jump",
+        "link_outage",
+    ]
+    start_s: float = Field(description="true start time, s after the epoch")
+    end_s: float = Field(description="true end time, s after the epoch")
+    wheel: int | None = Field(None, ge=0, description="wheel index, for wheel faults")
+    magnitude: float | None = Field(None, description="size of the fault in the unit of its kind")
+
+    @field_validator("end_s")
+    @classmethod
+    def _ordered(cls, v: float, info) -> float:  # type: ignore[no-untyped-def]
+        start = info.data.get("start_s")
+        if start is not None and v < start:
+            raise ValueError("must not be before start_s")
+        return v
+
+
+class UniverseConfig(Frozen):
+    """Everything the universe simulates."""
+
+    start_s: float = Field(-132.0, description="true time at which the run starts, s after the epoch")
+    end_s: float = Field(288.0, description="true time at which the run ends, s after the epoch")
+    control_period_s: float = Field(0.1, gt=0, description="lock-step period of true time, s (DESIGN: 10 Hz)")
+    flyby: FlybyConfig = FlybyConfig()
+    uncertainty: UncertaintyConfig = UncertaintyConfig()
+    bodies: BodiesConfig = BodiesConfig()
+    spacecraft: SpacecraftConfig = SpacecraftConfig()
+    sensors: SensorsConfig = SensorsConfig()
+    camera: CameraConfig = CameraConfig()
+    oscillator: OscillatorConfig = OscillatorConfig()
+    faults: list[FaultConfig] = Field(default_factory=list, description="faults to inject")
+
+    @field_validator("end_s")
+    @classmethod
+    def _after_start(cls, v: float, info) -> float:  # type: ignore[no-untyped-def]
+        start = info.data.get("start_s")
+        if start is not None and v <= start:
+            raise ValueError("must be after start_s")
+        return v
+
