@@ -1,0 +1,178 @@
+"""A node's attachment to the bus: its Zenoh session, liveliness, inbox, and how it learns that a peer failed.
+
+This is the thin edge of every node: the cores (universe simulator, flight software, ground segment) never see
+it. Everything a node receives lands in one inbox, in arrival order, so the node's main loop is a plain
+single-threaded loop; Zenoh's callback threads only decode and enqueue.
+
+A peer is declared failed when its liveliness token disappears (the process died or lost its link), when it
+publishes a failed ``Shutdown``, or when the node waited longer than the timeout for its answer.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import zenoh
+
+from flyby.bus import Keys
+from flyby.clock import Clock
+from flyby.errors import DecodeError, NodeFailure
+from flyby.messages import Message, Shutdown, Status, decode, encode
+
+
+@dataclass(frozen=True)
+class Received:
+    """One decoded message and its blob, as taken from the inbox."""
+
+    key: str
+    msg: Message
+    blob: bytes
+
+
+class PeerStopped(Exception):
+    """A peer ended the run normally (a ``Shutdown`` that is not a failure)."""
+
+    def __init__(self, shutdown: Shutdown) -> None:
+        self.shutdown = shutdown
+        super().__init__(f"{shutdown.node}: {shutdown.reason}")
+
+
+class Attachment:
+    """A node on the bus: publish, subscribe, watch peers, wait for messages with a timeout."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, node: str, clock: Clock, log: logging.Logger) -> None:
+        self.session = session
+        self.keys = keys
+        self.node = node
+        self.clock = clock
+        self.log = log
+        self.decode_errors = 0
+        self.sim_time_s: float | None = None  # last simulated time this node reached, for failure messages
+        self._inbox: queue.SimpleQueue[tuple[str, Any]] = queue.SimpleQueue()
+        self._alive: set[str] = set()
+        self._keep: list[Any] = []
+        self._publishers: dict[str, zenoh.Publisher] = {}
+        self._token: Any = None
+        self._watch(keys.shutdown, Shutdown)
+
+    # -- receiving -----------------------------------------------------------------------------------------
+    def subscribe(self, key: str, kind: type[Message]) -> None:
+        """Decode every sample on ``key`` as ``kind`` into the inbox; count and log what cannot be decoded."""
+        self._watch(key, kind)
+
+    def _watch(self, key: str, kind: type[Message]) -> None:
+        def on_sample(sample: zenoh.Sample) -> None:
+            data = sample.payload.to_bytes()
+            try:
+                msg, blob = decode(kind, data)
+            except DecodeError as exc:
+                self.decode_errors += 1
+                self.log.warning("undecodable message on %s (%d so far): %s", key, self.decode_errors, exc)
+                return
+            self._inbox.put(("msg", Received(str(sample.key_expr), msg, blob)))
+
+        self._keep.append(self.session.declare_subscriber(key, on_sample))
+
+    def watch_peers(self) -> None:
+        """Track which nodes are alive from their liveliness tokens (including those already up)."""
+
+        def on_token(sample: zenoh.Sample) -> None:
+            node = str(sample.key_expr).rsplit("/", 1)[-1]
+            if sample.kind == zenoh.SampleKind.PUT:
+                self._inbox.put(("up", node))
+            else:
+                self._inbox.put(("down", node))
+
+        self._keep.append(self.session.liveliness().declare_subscriber(self.keys.alive_all, on_token, history=True))
+
+    def declare_alive(self) -> None:
+        """Announce this node; declared after its subscribers so peers never talk to a deaf node."""
+        self._token = self.session.liveliness().declare_token(self.keys.alive(self.node))
+
+    # -- sending -------------------------------------------------------------------------------------------
+    def publish(self, key: str, msg: Message, blob: bytes = b"") -> None:
+        """Publish a message reliably, blocking rather than dropping when the link is congested."""
+        pub = self._publishers.get(key)
+        if pub is None:
+            pub = self.session.declare_publisher(
+                key, express=True, congestion_control=zenoh.CongestionControl.BLOCK
+            )
+            self._publishers[key] = pub
+        pub.put(encode(msg, blob))
+
+    def status(self, sim_time_s: float, real_time_factor: float | None = None, mode: str | None = None,
+               text: str = "") -> None:
+        """Tell whoever watches the run how far this node has got."""
+        self.publish(self.keys.status(self.node),
+                     Status(node=self.node, sim_time_s=sim_time_s, real_time_factor=real_time_factor,
+                            mode=mode, text=text))
+
+    def shutdown(self, reason: str, failed: bool) -> None:
+        """Tell every node that the run is over, and why."""
+        self.publish(self.keys.shutdown, Shutdown(node=self.node, reason=reason, sim_time_s=self.sim_time_s,
+                                                  failed=failed))
+
+    # -- waiting -------------------------------------------------------------------------------------------
+    def wait_for_peers(self, nodes: Iterable[str], timeout_s: float) -> None:
+        """Return once every node in ``nodes`` is alive; raise NodeFailure naming the first missing one."""
+        wanted = set(nodes)
+        deadline = self.clock.now() + timeout_s
+        while not wanted <= self._alive:
+            left = deadline - self.clock.now()
+            if left <= 0:
+                missing = sorted(wanted - self._alive)[0]
+                raise NodeFailure(missing, None, f"did not come up within {timeout_s:g} s")
+            self._take(left)
+
+    def receive(self, timeout_s: float) -> Received | None:
+        """Next message, or None after ``timeout_s``; raise NodeFailure if a peer died or failed."""
+        return self._take(timeout_s)
+
+    def wait_until_gone(self, nodes: Iterable[str], timeout_s: float) -> None:
+        """Wait (at most ``timeout_s``) until ``nodes`` have withdrawn their tokens, ignoring other traffic."""
+        deadline = self.clock.now() + timeout_s
+        while set(nodes) & self._alive and self.clock.now() < deadline:
+            try:
+                what, item = self._inbox.get(timeout=max(0.0, deadline - self.clock.now()))
+            except queue.Empty:
+                return
+            if what == "up":
+                self._alive.add(item)
+            elif what == "down":
+                self._alive.discard(item)
+
+    def _take(self, timeout_s: float) -> Received | None:
+        deadline = self.clock.now() + timeout_s
+        while True:
+            left = deadline - self.clock.now()
+            if left <= 0:
+                return None
+            try:
+                what, item = self._inbox.get(timeout=left)
+            except queue.Empty:
+                return None
+            if what == "up":
+                self._alive.add(item)
+            elif what == "down":
+                self._alive.discard(item)
+                if item != self.node:
+                    raise NodeFailure(item, self.sim_time_s, "died (its bus liveliness token vanished)")
+            else:
+                msg = item.msg
+                if isinstance(msg, Shutdown):
+                    if msg.node == self.node:
+                        continue
+                    if msg.failed:
+                        raise NodeFailure(msg.node, msg.sim_time_s, f"failed: {msg.reason}")
+                    raise PeerStopped(msg)
+                return item
+
+    def close(self) -> None:
+        """Withdraw the liveliness token first, so peers see a clean departure before the session closes."""
+        if self._token is not None:
+            self._token.undeclare()
+            self._token = None
