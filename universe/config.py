@@ -65,12 +65,25 @@ class BodiesConfig(Frozen):
     orbit_radius_m: float = Field(1190.0, gt=0, description="Dimorphos orbit radius, m (Naidu et al. 2020)")
     orbit_period_h: float = Field(11.92, gt=0, description="Dimorphos orbital period, h (pre-impact)")
     orbit_phase_deg: float = Field(0.0, description="Dimorphos orbital phase at the epoch, deg")
+    orbit_normal: Vec3 = Field(
+        (0.0, 0.0, 1.0),
+        description="normal of the Dimorphos orbit plane, inertial frame (normalised; the orbit is prograde about it); "
+        "phase 0 lies along inertial X projected on the plane (inertial Y if X is the normal). "
+        "Default: the inertial XY plane (a convention of this emulator)",
+    )
     mass_ratio: float = Field(0.0093, ge=0, description="Dimorphos/Didymos mass ratio (Naidu et al. 2020)")
     sun_direction: Vec3 = Field(
         (-0.5, 0.5, 0.0),
         description="direction from the asteroid to the Sun, inertial frame (normalised); sets the phase angle",
     )
     impact_time_s: float = Field(0.0, description="DART impact time, s after the epoch; the plume starts here")
+
+    @field_validator("sun_direction", "orbit_normal")
+    @classmethod
+    def _nonzero(cls, v: Vec3) -> Vec3:
+        if sum(c * c for c in v) < 1e-12:
+            raise ValueError("must be a non-zero vector")
+        return v
 
 
 class WheelConfig(Frozen):
@@ -87,6 +100,12 @@ class WheelConfig(Frozen):
         1.0e-7, ge=0, description="viscous friction coefficient, N m per rad/s (typical small RW)"
     )
     coulomb_friction_nm: float = Field(1.0e-5, ge=0, description="Coulomb friction torque, N m (typical small RW)")
+    coulomb_smoothing_rad_s: float = Field(
+        0.01,
+        gt=0,
+        description="wheel speed, rad/s, over which Coulomb friction ramps up (tanh) so that RK4 does not chatter "
+        "at zero speed (numerical regularisation; default equals the tachometer noise, so it is unobservable)",
+    )
 
 
 class SpacecraftConfig(Frozen):
@@ -103,6 +122,12 @@ class SpacecraftConfig(Frozen):
         0.5, ge=0, description="initial pointing error about a seeded random axis, deg"
     )
     initial_rate_deg_s: Vec3 = Field((0.0, 0.0, 0.0), description="initial body rate, deg/s")
+    integration_substep_s: float = Field(
+        0.01,
+        gt=0,
+        description="longest fixed RK4 substep of the attitude dynamics, s (0.01 s keeps the energy error "
+        "below 1e-9 over a 600 s flyby at CubeSat rates; brief of the dynamics module)",
+    )
 
 
 class StarTrackerConfig(Frozen):
@@ -119,6 +144,13 @@ class GyroConfig(Frozen):
     arw_deg_sqrt_h: float = Field(0.15, ge=0, description="angle random walk, deg/sqrt(h)")
     bias_instability_deg_h: float = Field(1.0, ge=0, description="bias instability, deg/h")
     initial_bias_deg_h: Vec3 = Field((0.0, 0.0, 0.0), description="initial bias per axis, deg/h")
+    bias_walk_time_s: float = Field(
+        3600.0,
+        gt=0,
+        description="time, s, over which the bias random walk drifts by one bias instability (one-sigma): "
+        "rate random walk = bias_instability / sqrt(this); default one hour, the usual reading of a datasheet "
+        "bias instability as the drift over an hour",
+    )
 
 
 class SensorsConfig(Frozen):
@@ -147,6 +179,12 @@ class OscillatorConfig(Frozen):
     drift_ppm: float = Field(0.0, description="frequency error, parts per million")
     drift_rate_ppm_per_day: float = Field(0.0, description="change of the frequency error, ppm per day")
     jitter_s: float = Field(0.0, ge=0, description="one-sigma white jitter of each OBT reading, s")
+    jitter_bound_sigma: float = Field(
+        3.0,
+        gt=0,
+        description="jitter is clipped at this many sigmas, so every reading is within "
+        "jitter_bound_sigma * jitter_s of the oscillator model (3: the usual bound quoted for a Gaussian timing error)",
+    )
 
 
 class FaultConfig(Frozen):

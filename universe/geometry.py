@@ -1,0 +1,221 @@
+"""Flyby geometry: where the spacecraft, Didymos, Dimorphos and the Sun are, and what the camera sees of them.
+
+At 7 km/s and 55 km from a 5e11 kg binary the hyperbola is a straight line to within millimetres, so the
+spacecraft moves on r(t) = d_ca e_ca + v (t - t_ca) e_v relative to the Didymos barycentre (inertial frame,
+metres). Dimorphos circles Didymos on a circular orbit; both bodies sit about the barycentre by their mass ratio.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from universe.config import BodiesConfig, FlybyConfig, UncertaintyConfig
+
+ArrayLike = float | np.ndarray
+
+
+class GeometryError(ValueError):
+    """A geometric input is degenerate (parallel directions, zero vectors, non-unit quaternions...)."""
+
+
+def _unit(v: np.ndarray, name: str) -> np.ndarray:
+    """Return v normalised, or raise GeometryError naming the vector if it is (nearly) zero."""
+    n = float(np.linalg.norm(v))
+    if n < 1e-12:
+        raise GeometryError(f"{name} must be a non-zero vector, got {v.tolist()}")
+    return v / n
+
+
+def _orthogonal_unit(v: np.ndarray, reference: np.ndarray, name: str) -> np.ndarray:
+    """Return the unit component of v orthogonal to the unit vector reference (Gram-Schmidt)."""
+    v = _unit(np.asarray(v, dtype=float), name)
+    w = v - float(v @ reference) * reference
+    n = float(np.linalg.norm(w))
+    if n < 1e-9:
+        raise GeometryError(f"{name} {v.tolist()} is parallel to {reference.tolist()}; cannot make it orthogonal")
+    return w / n
+
+
+def camera_axes_body(boresight_body: np.ndarray) -> np.ndarray:
+    """Return the 3x3 matrix whose rows are the camera x (image columns), y (image rows) and z (boresight) in body axes.
+
+    Camera x is body +X made orthogonal to the boresight (body +Y if the boresight is along X), camera y = z cross x,
+    so the default boresight +Z gives camera axes equal to the body axes.
+    """
+    z = _unit(np.asarray(boresight_body, dtype=float), "boresight_body")
+    ex = np.array([1.0, 0.0, 0.0])
+    ref = ex if abs(float(z @ ex)) < 0.999 else np.array([0.0, 1.0, 0.0])
+    x = _orthogonal_unit(ref, z, "camera x reference")
+    y = np.cross(z, x)
+    return np.vstack([x, y, z])
+
+
+def angle_between_rad(a: np.ndarray, b: np.ndarray) -> float:
+    """Return the angle between two non-zero 3-vectors, rad (atan2 form, accurate near 0 and pi)."""
+    return float(np.arctan2(np.linalg.norm(np.cross(a, b)), float(np.dot(a, b))))
+
+
+def in_square_fov(los_camera: np.ndarray, fov_deg: float) -> bool:
+    """Return whether a direction in camera axes falls in the square pinhole field of view of side fov_deg."""
+    x, y, z = (float(c) for c in los_camera)
+    if z <= 0.0:
+        return False
+    half_tan = float(np.tan(np.radians(fov_deg) / 2.0))
+    return abs(x) <= half_tan * z and abs(y) <= half_tan * z
+
+
+@dataclass(frozen=True)
+class TruthSample:
+    """The true geometry at one instant, as the flight software would ideally know it."""
+
+    t_s: float
+    range_to_dimorphos_m: float
+    range_to_didymos_m: float
+    los_dimorphos_inertial: np.ndarray
+    """unit vector from the spacecraft to Dimorphos, inertial"""
+    los_didymos_inertial: np.ndarray
+    """unit vector from the spacecraft to Didymos, inertial"""
+    los_dimorphos_body: np.ndarray
+    """unit vector from the spacecraft to Dimorphos, body axes"""
+    los_dimorphos_camera: np.ndarray
+    """unit vector from the spacecraft to Dimorphos, camera axes (x columns, y rows, z boresight)"""
+    theta_rad: float
+    """paper's angle between the velocity relative to Dimorphos and the line of sight to it: 0 far before C/A,
+    pi/2 at C/A, pi far after"""
+    phase_angle_deg: float
+    """Sun-Dimorphos-spacecraft angle, deg"""
+    pointing_error_rad: float
+    """angle between the camera boresight (inertial) and the line of sight to Dimorphos"""
+    target_in_fov: bool
+    """whether the centre of Dimorphos is inside the square field of view"""
+
+
+class FlybyGeometry:
+    """The true positions of the flyby, relative to the Didymos barycentre, inertial frame, metres.
+
+    Every position/velocity method accepts a scalar time or an array of times (shape S) and returns shape S + (3,).
+    """
+
+    def __init__(self, flyby: FlybyConfig, bodies: BodiesConfig) -> None:
+        self.flyby = flyby
+        self.bodies = bodies
+        self.e_v = _unit(np.asarray(flyby.approach_direction, dtype=float), "flyby.approach_direction")
+        self.e_ca = _orthogonal_unit(np.asarray(flyby.ca_direction, dtype=float), self.e_v, "flyby.ca_direction")
+        self.ca_time_s = float(flyby.ca_time_s)
+        self.ca_distance_m = float(flyby.ca_distance_km) * 1e3
+        self.speed_m_s = float(flyby.speed_km_s) * 1e3
+        n = _unit(np.asarray(bodies.orbit_normal, dtype=float), "bodies.orbit_normal")
+        ex = np.array([1.0, 0.0, 0.0])
+        ref = ex if abs(float(n @ ex)) < 0.999 else np.array([0.0, 1.0, 0.0])
+        self.orbit_e1 = _orthogonal_unit(ref, n, "orbit phase reference")
+        self.orbit_e2 = np.cross(n, self.orbit_e1)
+        self.orbit_normal = n
+        self.mean_motion_rad_s = 2.0 * np.pi / (float(bodies.orbit_period_h) * 3600.0)
+        q = float(bodies.mass_ratio)
+        # Barycentric distances: Dimorphos at a/(1+q), Didymos at a q/(1+q) on the other side.
+        self.dimorphos_arm_m = float(bodies.orbit_radius_m) / (1.0 + q)
+        self.didymos_arm_m = float(bodies.orbit_radius_m) * q / (1.0 + q)
+        self._sun = _unit(np.asarray(bodies.sun_direction, dtype=float), "bodies.sun_direction")
+
+    def spacecraft_position_m(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the spacecraft position relative to the barycentre at true time t_s, m."""
+        dt = np.asarray(t_s, dtype=float)[..., None] - self.ca_time_s
+        return self.ca_distance_m * self.e_ca + self.speed_m_s * dt * self.e_v
+
+    def spacecraft_velocity_m_s(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the spacecraft velocity relative to the barycentre (constant), m/s."""
+        shape = np.shape(t_s) + (3,)
+        return np.broadcast_to(self.speed_m_s * self.e_v, shape).copy()
+
+    def _orbit_phase_rad(self, t_s: ArrayLike) -> np.ndarray:
+        """Return Dimorphos's orbital phase at t_s, rad, with a trailing axis for broadcasting."""
+        t = np.asarray(t_s, dtype=float)[..., None]
+        return np.radians(self.bodies.orbit_phase_deg) + self.mean_motion_rad_s * t
+
+    def _orbit_unit(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the unit vector from Didymos to Dimorphos at t_s."""
+        ph = self._orbit_phase_rad(t_s)
+        return np.cos(ph) * self.orbit_e1 + np.sin(ph) * self.orbit_e2
+
+    def dimorphos_position_m(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the Dimorphos centre relative to the barycentre, m."""
+        return self.dimorphos_arm_m * self._orbit_unit(t_s)
+
+    def didymos_position_m(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the Didymos centre relative to the barycentre, m (opposite Dimorphos, scaled by the mass ratio)."""
+        return -self.didymos_arm_m * self._orbit_unit(t_s)
+
+    def dimorphos_velocity_m_s(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the Dimorphos velocity relative to the barycentre, m/s."""
+        ph = self._orbit_phase_rad(t_s)
+        tangent = -np.sin(ph) * self.orbit_e1 + np.cos(ph) * self.orbit_e2
+        return self.dimorphos_arm_m * self.mean_motion_rad_s * tangent
+
+    def sun_direction(self) -> np.ndarray:
+        """Return the unit vector from the asteroid system to the Sun, inertial."""
+        return self._sun.copy()
+
+    def theta_rad(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the paper's angle Theta (velocity relative to Dimorphos vs line of sight to it), rad; vectorised."""
+        rel = self.dimorphos_position_m(t_s) - self.spacecraft_position_m(t_s)
+        vel = self.spacecraft_velocity_m_s(t_s) - self.dimorphos_velocity_m_s(t_s)
+        cross = np.linalg.norm(np.cross(vel, rel), axis=-1)
+        dot = np.sum(vel * rel, axis=-1)
+        return np.arctan2(cross, dot)
+
+    def truth_sample(
+        self, t_s: float, q_body_to_inertial: np.ndarray, boresight_body: np.ndarray, fov_deg: float
+    ) -> TruthSample:
+        """Return the true geometry at t_s for an attitude (scalar-last quaternion body -> inertial) and a camera."""
+        q = np.asarray(q_body_to_inertial, dtype=float)
+        if q.shape != (4,) or abs(float(np.linalg.norm(q)) - 1.0) > 1e-6:
+            raise GeometryError(f"q_body_to_inertial must be a unit quaternion of shape (4,), got {q.tolist()}")
+        if not 0.0 < fov_deg < 180.0:
+            raise GeometryError(f"fov_deg must be in (0, 180), got {fov_deg}")
+        r_sc = self.spacecraft_position_m(t_s)
+        to_dim = self.dimorphos_position_m(t_s) - r_sc
+        to_did = self.didymos_position_m(t_s) - r_sc
+        range_dim = float(np.linalg.norm(to_dim))
+        range_did = float(np.linalg.norm(to_did))
+        los_dim = to_dim / range_dim
+        los_did = to_did / range_did
+        rot = Rotation.from_quat(q)
+        los_body = rot.inv().apply(los_dim)
+        axes = camera_axes_body(np.asarray(boresight_body, dtype=float))
+        los_cam = axes @ los_body
+        boresight_inertial = rot.apply(axes[2])
+        return TruthSample(
+            t_s=float(t_s),
+            range_to_dimorphos_m=range_dim,
+            range_to_didymos_m=range_did,
+            los_dimorphos_inertial=los_dim,
+            los_didymos_inertial=los_did,
+            los_dimorphos_body=los_body,
+            los_dimorphos_camera=los_cam,
+            theta_rad=float(self.theta_rad(t_s)),
+            phase_angle_deg=float(np.degrees(angle_between_rad(self._sun, -los_dim))),
+            pointing_error_rad=angle_between_rad(boresight_inertial, los_dim),
+            target_in_fov=in_square_fov(los_cam, fov_deg),
+        )
+
+
+def nominal_ca(flyby: FlybyConfig, unc: UncertaintyConfig, rng: np.random.Generator) -> tuple[float, float]:
+    """Return the (C/A time s, C/A distance km) that ground believes: truth plus a seeded error.
+
+    Each error is N(0, sigma), or exactly offset_sigma * sigma when the *_offset_sigma field is set (worst-case
+    corners). Both normals are always drawn, time first, so fixing one corner does not change the other's draw.
+    """
+    z_time, z_dist = rng.standard_normal(2)
+    k_time = z_time if unc.ca_time_offset_sigma is None else float(unc.ca_time_offset_sigma)
+    k_dist = z_dist if unc.ca_distance_offset_sigma is None else float(unc.ca_distance_offset_sigma)
+    t_ca = float(flyby.ca_time_s + k_time * unc.ca_time_sigma_s)
+    d_ca = float(flyby.ca_distance_km + k_dist * unc.ca_distance_sigma_km)
+    if d_ca <= 0.0:
+        raise GeometryError(
+            f"nominal C/A distance {d_ca:.3f} km is not positive (truth {flyby.ca_distance_km} km, "
+            f"{k_dist:+.2f} x uncertainty.ca_distance_sigma_km {unc.ca_distance_sigma_km} km)"
+        )
+    return t_ca, d_ca
