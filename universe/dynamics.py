@@ -1,0 +1,291 @@
+"""Attitude dynamics of a rigid spacecraft with reaction wheels (a gyrostat), integrated with fixed-step RK4.
+
+Model (body axes; A is the 3 x N matrix of wheel spin axes, J the rotor axial inertia, I the spacecraft inertia
+without the rotors' axial inertia):
+
+    h_i   = J (a_i . w + Omega_i)                 absolute axial momentum of rotor i
+    H     = I w + A h                             total angular momentum, conserved in the inertial frame
+    tau_i = u_i + f_i(Omega_i)                    motor torque on the rotor plus bearing friction (rotor <-> body)
+    dh/dt = tau                                   (a stuck rotor instead turns with the body: Omega_i = 0)
+    I dw/dt = -A tau - w x H                      (stuck rotors join I: I_eff = I + J sum a_i a_i^T)
+    dq/dt = 1/2 q (x) [w, 0]                      scalar-last quaternion, body -> inertial
+
+The wheel momentum limit applies to the rotor speed relative to the body (what the motor and tachometer see):
+the motor torque is cut back so that |J Omega_i| does not grow past max_momentum_nms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from universe.config import SpacecraftConfig
+
+
+class DynamicsError(ValueError):
+    """An input to the attitude dynamics has the wrong shape or value."""
+
+
+@dataclass(frozen=True)
+class AttitudeState:
+    """True attitude state: q scalar-last body -> inertial, body rate rad/s, wheel rotor speeds relative to the body."""
+
+    q: np.ndarray
+    omega_rad_s: np.ndarray
+    wheel_speed_rad_s: np.ndarray
+
+
+def quaternion_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Return v rotated by the unit scalar-last quaternion q (body vector -> inertial vector for a body->inertial q)."""
+    x, y, z, w = (float(c) for c in q)
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+    return r @ np.asarray(v, dtype=float)
+
+
+def pyramid_axes_body(elevation_deg: float) -> np.ndarray:
+    """Return the 3 x 4 spin axes of a pyramid: elevation_deg above the body XY plane, azimuths 45/135/225/315 deg."""
+    el = math.radians(elevation_deg)
+    az = np.radians([45.0, 135.0, 225.0, 315.0])
+    return np.vstack([math.cos(el) * np.cos(az), math.cos(el) * np.sin(az), np.full(4, math.sin(el))])
+
+
+@dataclass(frozen=True)
+class _Mode:
+    """Matrices precomputed for one set of stuck wheels, as Python floats for the RK4 inner loop."""
+
+    free: np.ndarray  # (N,) 1.0 for a free rotor, 0.0 for a stuck one
+    i_eff: np.ndarray  # (3, 3) spacecraft inertia plus the stuck rotors' axial inertia
+    i_eff_inv: np.ndarray
+    gain: tuple[float, ...]  # d(J Omega_i)/d(u_i) = 1 + J a_i^T I_eff^-1 a_i
+    i_eff_flat: tuple[float, ...]  # row-major 9 floats
+    i_eff_inv_flat: tuple[float, ...]
+    free_axes: tuple[tuple[int, float, float, float], ...]  # (index, ax, ay, az) of each free rotor
+
+
+class SpacecraftDynamics:
+    """Rigid spacecraft with N reaction wheels; `step` advances an AttitudeState under held wheel torque commands."""
+
+    def __init__(self, sc: SpacecraftConfig) -> None:
+        self.sc = sc
+        w = sc.wheels
+        self.inertia_kgm2 = np.asarray(sc.inertia_kgm2, dtype=float)
+        if not np.allclose(self.inertia_kgm2, self.inertia_kgm2.T):
+            raise DynamicsError(f"spacecraft.inertia_kgm2 must be symmetric, got {self.inertia_kgm2.tolist()}")
+        if np.any(np.linalg.eigvalsh(self.inertia_kgm2) <= 0):
+            raise DynamicsError(f"spacecraft.inertia_kgm2 must be positive definite, got {self.inertia_kgm2.tolist()}")
+        if w.layout == "orthogonal":
+            self.wheel_axes_body = np.eye(3)
+        else:
+            self.wheel_axes_body = pyramid_axes_body(w.pyramid_angle_deg)
+        self.n_wheels = self.wheel_axes_body.shape[1]
+        self.rotor_inertia_kgm2 = float(w.inertia_kgm2)
+        self.max_torque_nm = float(w.max_torque_nm)
+        self.max_momentum_nms = float(w.max_momentum_nms)
+        self._viscous = float(w.viscous_friction_nms)
+        self._coulomb = float(w.coulomb_friction_nm)
+        self._smooth = float(w.coulomb_smoothing_rad_s)
+        self._max_substep_s = float(sc.integration_substep_s)
+        self._modes: dict[frozenset[int], _Mode] = {}
+        # Friction's stiffness on the rotor speed, 1/s: RK4 substeps are kept below 0.5 / this.
+        self._friction_rate_s = (self._viscous + self._coulomb / self._smooth) / self.rotor_inertia_kgm2 * 1.01
+
+    def _mode(self, stuck: frozenset[int]) -> _Mode:
+        """Return (and cache) the matrices for a set of stuck wheels."""
+        mode = self._modes.get(stuck)
+        if mode is None:
+            free = np.ones(self.n_wheels)
+            i_eff = self.inertia_kgm2.copy()
+            for i in stuck:
+                free[i] = 0.0
+                a = self.wheel_axes_body[:, i]
+                i_eff += self.rotor_inertia_kgm2 * np.outer(a, a)
+            i_eff_inv = np.linalg.inv(i_eff)
+            a = self.wheel_axes_body
+            gain = 1.0 + self.rotor_inertia_kgm2 * np.einsum("ij,ik,kj->j", a, i_eff_inv, a)
+            mode = _Mode(
+                free=free,
+                i_eff=i_eff,
+                i_eff_inv=i_eff_inv,
+                gain=tuple(float(g) for g in gain),
+                i_eff_flat=tuple(float(c) for c in i_eff.ravel()),
+                i_eff_inv_flat=tuple(float(c) for c in i_eff_inv.ravel()),
+                free_axes=tuple(
+                    (i, float(a[0, i]), float(a[1, i]), float(a[2, i])) for i in range(self.n_wheels) if free[i]
+                ),
+            )
+            self._modes[stuck] = mode
+        return mode
+
+    def _check_wheels(self, wheels: frozenset[int], name: str) -> frozenset[int]:
+        """Return wheels as a frozenset after checking every index is a wheel of this spacecraft."""
+        wheels = frozenset(int(i) for i in wheels)
+        bad = [i for i in wheels if not 0 <= i < self.n_wheels]
+        if bad:
+            raise DynamicsError(f"{name} {sorted(bad)} out of range: this spacecraft has {self.n_wheels} wheels")
+        return wheels
+
+    def _check_state(self, state: AttitudeState) -> None:
+        """Raise DynamicsError if the state's arrays have the wrong shapes."""
+        if np.shape(state.q) != (4,) or np.shape(state.omega_rad_s) != (3,):
+            raise DynamicsError(
+                f"AttitudeState.q must have shape (4,) and omega_rad_s (3,), "
+                f"got {np.shape(state.q)} and {np.shape(state.omega_rad_s)}"
+            )
+        if abs(math.sqrt(float(np.dot(state.q, state.q))) - 1.0) > 1e-6:
+            raise DynamicsError(f"AttitudeState.q must be a unit quaternion, got {np.asarray(state.q).tolist()}")
+        if np.shape(state.wheel_speed_rad_s) != (self.n_wheels,):
+            raise DynamicsError(
+                f"AttitudeState.wheel_speed_rad_s must have shape ({self.n_wheels},), "
+                f"got {np.shape(state.wheel_speed_rad_s)}"
+            )
+
+    def wheel_momentum_nms(self, state: AttitudeState) -> np.ndarray:
+        """Return each rotor's momentum relative to the body, J Omega_i, N m s (the quantity that saturates)."""
+        return self.rotor_inertia_kgm2 * np.asarray(state.wheel_speed_rad_s, dtype=float)
+
+    def angular_momentum_body(self, state: AttitudeState) -> np.ndarray:
+        """Return the total angular momentum (body plus rotors) in body axes, N m s."""
+        w = np.asarray(state.omega_rad_s, dtype=float)
+        a = self.wheel_axes_body
+        h = self.rotor_inertia_kgm2 * (a.T @ w + np.asarray(state.wheel_speed_rad_s, dtype=float))
+        return self.inertia_kgm2 @ w + a @ h
+
+    def angular_momentum_inertial(self, state: AttitudeState) -> np.ndarray:
+        """Return the total angular momentum in inertial axes, N m s (constant without external torque)."""
+        return quaternion_rotate(state.q, self.angular_momentum_body(state))
+
+    def kinetic_energy(self, state: AttitudeState) -> float:
+        """Return the rotational kinetic energy of the body and rotors, J."""
+        w = np.asarray(state.omega_rad_s, dtype=float)
+        spin = self.wheel_axes_body.T @ w + np.asarray(state.wheel_speed_rad_s, dtype=float)
+        return float(0.5 * w @ self.inertia_kgm2 @ w + 0.5 * self.rotor_inertia_kgm2 * spin @ spin)
+
+    def step(
+        self,
+        state: AttitudeState,
+        torque_cmd_nm: np.ndarray,
+        dt_s: float,
+        stuck_wheels: frozenset[int] = frozenset(),
+        failed_wheels: frozenset[int] = frozenset(),
+    ) -> AttitudeState:
+        """Return the state after dt_s with the motor torques held.
+
+        torque_cmd_nm (N,) is the motor torque on each rotor about its spin axis (the body feels minus it), clipped to
+        max_torque_nm and cut back at the momentum limit. A failed wheel gets no motor torque (friction spins it
+        down); a stuck wheel's rotor is locked to the body (its relative momentum passes to the body at once).
+        """
+        self._check_state(state)
+        u_cmd = np.asarray(torque_cmd_nm, dtype=float)
+        if u_cmd.shape != (self.n_wheels,):
+            raise DynamicsError(f"torque_cmd_nm must have shape ({self.n_wheels},), got {u_cmd.shape}")
+        if not np.all(np.isfinite(u_cmd)):
+            raise DynamicsError(f"torque_cmd_nm must be finite, got {u_cmd.tolist()}")
+        if not dt_s >= 0.0:
+            raise DynamicsError(f"dt_s must be >= 0, got {dt_s}")
+        stuck = self._check_wheels(stuck_wheels, "stuck_wheels")
+        failed = self._check_wheels(failed_wheels, "failed_wheels")
+        mode = self._mode(stuck)
+        a = self.wheel_axes_body
+        jw = self.rotor_inertia_kgm2
+
+        q = np.asarray(state.q, dtype=float)
+        w = np.asarray(state.omega_rad_s, dtype=float)
+        speeds = np.asarray(state.wheel_speed_rad_s, dtype=float)
+        h = jw * (a.T @ w + speeds)
+        if stuck and np.any(speeds[list(stuck)] != 0.0):
+            # A rotor seizing hands its relative momentum to the body: H is conserved, free rotors keep their h.
+            total = self.inertia_kgm2 @ w + a @ h
+            w = mode.i_eff_inv @ (total - a @ (mode.free * h))
+        motor_on = mode.free.copy()
+        for i in failed:
+            motor_on[i] = 0.0
+        u_held = np.clip(u_cmd, -self.max_torque_nm, self.max_torque_nm) * motor_on
+
+        if dt_s == 0.0:
+            n_sub = 0
+        else:
+            n_sub = max(math.ceil(dt_s / self._max_substep_s - 1e-9), math.ceil(dt_s * self._friction_rate_s / 0.5))
+        hs = dt_s / n_sub if n_sub else 0.0
+        # Plain Python floats: with 3-4 wheels numpy's per-call overhead would dominate the RK4 inner loop.
+        x = [float(c) for c in q] + [float(c) for c in w] + [float(c) for c in h]
+        u_list = [float(c) for c in u_held]
+        deriv = self._derivative
+        half, sixth = 0.5 * hs, hs / 6.0
+        for _ in range(n_sub):
+            u = self._limited_torque(u_list, x, mode, hs)
+            k1 = deriv(x, u, mode)
+            k2 = deriv([xi + half * ki for xi, ki in zip(x, k1)], u, mode)
+            k3 = deriv([xi + half * ki for xi, ki in zip(x, k2)], u, mode)
+            k4 = deriv([xi + hs * ki for xi, ki in zip(x, k3)], u, mode)
+            x = [xi + sixth * (a1 + 2.0 * (a2 + a3) + a4) for xi, a1, a2, a3, a4 in zip(x, k1, k2, k3, k4)]
+            norm = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3])
+            x[0] /= norm
+            x[1] /= norm
+            x[2] /= norm
+            x[3] /= norm
+        arr = np.array(x)
+        q, w, h = arr[:4], arr[4:7], arr[7:]
+        speeds = (h / jw - a.T @ w) * mode.free
+        return AttitudeState(q=q, omega_rad_s=w, wheel_speed_rad_s=speeds)
+
+    def _limited_torque(self, u: list[float], x: list[float], mode: _Mode, hs: float) -> list[float]:
+        """Return the motor torques cut back so that no rotor's relative momentum grows past the limit this substep."""
+        jw = self.rotor_inertia_kgm2
+        wx, wy, wz = x[4], x[5], x[6]
+        out = list(u)
+        for i, ax, ay, az in mode.free_axes:
+            ui = u[i]
+            if ui == 0.0:
+                continue
+            p = x[7 + i] - jw * (ax * wx + ay * wy + az * wz)
+            if ui * p >= 0.0:
+                allowed = max(self.max_momentum_nms - abs(p), 0.0) / (mode.gain[i] * hs)
+                out[i] = min(max(ui, -allowed), allowed)
+        return out
+
+    def _derivative(self, x: list[float], u: list[float], mode: _Mode) -> list[float]:
+        """Return dx/dt of x = [q (4), w (3), h (N)] for held motor torques u."""
+        inv_jw = 1.0 / self.rotor_inertia_kgm2
+        cv, cc, inv_eps = self._viscous, self._coulomb, 1.0 / self._smooth
+        tanh = math.tanh
+        qx, qy, qz, qw, wx, wy, wz = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+        taus = [0.0] * (len(x) - 7)
+        hx = hy = hz = tx = ty = tz = 0.0
+        for i, ax, ay, az in mode.free_axes:
+            hi = x[7 + i]
+            speed = hi * inv_jw - (ax * wx + ay * wy + az * wz)
+            t = u[i] - cv * speed - cc * tanh(speed * inv_eps)
+            taus[i] = t
+            hx += ax * hi
+            hy += ay * hi
+            hz += az * hi
+            tx += ax * t
+            ty += ay * t
+            tz += az * t
+        i00, i01, i02, i10, i11, i12, i20, i21, i22 = mode.i_eff_flat
+        bx = i00 * wx + i01 * wy + i02 * wz + hx
+        by = i10 * wx + i11 * wy + i12 * wz + hy
+        bz = i20 * wx + i21 * wy + i22 * wz + hz
+        # Right-hand side -A tau - w x H.
+        rx = -tx - (wy * bz - wz * by)
+        ry = -ty - (wz * bx - wx * bz)
+        rz = -tz - (wx * by - wy * bx)
+        j00, j01, j02, j10, j11, j12, j20, j21, j22 = mode.i_eff_inv_flat
+        return [
+            0.5 * (qw * wx - qz * wy + qy * wz),
+            0.5 * (qz * wx + qw * wy - qx * wz),
+            0.5 * (-qy * wx + qx * wy + qw * wz),
+            -0.5 * (qx * wx + qy * wy + qz * wz),
+            j00 * rx + j01 * ry + j02 * rz,
+            j10 * rx + j11 * ry + j12 * rz,
+            j20 * rx + j21 * ry + j22 * rz,
+            *taus,
+        ]
