@@ -1,0 +1,143 @@
+"""Attitude sensors: star tracker quaternion, gyro rate, wheel tachometers, with seeded noise and bias.
+
+Every random number comes from the Generator given at construction, drawn in a fixed order per call (gyro bias
+walk 3, gyro white noise 3, tachometers N, then the star tracker 3 on an update), whatever the sigmas are, so a run
+is reproducible from its seed and changing one sigma does not reshuffle the other sensors' noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from universe.config import SensorsConfig
+from universe.dynamics import AttitudeState
+
+ARCSEC_RAD = math.pi / (180.0 * 3600.0)
+DEG_H_RAD_S = math.pi / 180.0 / 3600.0
+DEG_SQRT_H_RAD_SQRT_S = math.pi / 180.0 / 60.0
+
+
+class SensorError(ValueError):
+    """A sensor input has the wrong shape or value."""
+
+
+@dataclass(frozen=True)
+class SensorReadings:
+    """What the hardware reports at one instant."""
+
+    star_tracker_q: np.ndarray | None
+    """scalar-last body -> inertial quaternion, held between updates; None during an outage"""
+    gyro_rad_s: np.ndarray
+    """body rate, rad/s, with bias and noise"""
+    wheel_speed_rad_s: np.ndarray
+    """rotor speeds relative to the body, rad/s, with noise"""
+
+
+def quaternion_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Return the Hamilton product p (x) q of scalar-last quaternions (apply q first, then p)."""
+    px, py, pz, pw = p
+    qx, qy, qz, qw = q
+    return np.array(
+        [
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+            pw * qw - px * qx - py * qy - pz * qz,
+        ]
+    )
+
+
+def quaternion_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
+    """Return the scalar-last unit quaternion of a rotation vector (axis times angle, rad)."""
+    angle = float(np.linalg.norm(rotvec))
+    if angle < 1e-12:
+        # sin(a/2)/a -> 1/2 as a -> 0.
+        return np.array([0.5 * rotvec[0], 0.5 * rotvec[1], 0.5 * rotvec[2], 1.0]) / math.sqrt(1.0 + 0.25 * angle**2)
+    s = math.sin(0.5 * angle) / angle
+    return np.array([s * rotvec[0], s * rotvec[1], s * rotvec[2], math.cos(0.5 * angle)])
+
+
+class Sensors:
+    """The spacecraft's star tracker, gyro and wheel tachometers; `measure` samples them from the true state."""
+
+    def __init__(self, cfg: SensorsConfig, n_wheels: int, rng: np.random.Generator) -> None:
+        if n_wheels < 1:
+            raise SensorError(f"n_wheels must be >= 1, got {n_wheels}")
+        self.cfg = cfg
+        self.n_wheels = n_wheels
+        self._rng = rng
+        st = cfg.star_tracker
+        self._st_sigma_rad = np.asarray(st.noise_arcsec, dtype=float) * ARCSEC_RAD
+        self._st_bias_rad = np.asarray(st.bias_arcsec, dtype=float) * ARCSEC_RAD
+        self._st_rate_hz = float(st.rate_hz)
+        self._st_held: np.ndarray | None = None
+        self._st_slot: int | None = None
+        g = cfg.gyro
+        self._arw_rad_sqrt_s = float(g.arw_deg_sqrt_h) * DEG_SQRT_H_RAD_SQRT_S
+        # Rate random walk chosen so the bias drifts one bias instability (1 sigma) in bias_walk_time_s.
+        self._rrw_rad_s_sqrt_s = float(g.bias_instability_deg_h) * DEG_H_RAD_S / math.sqrt(g.bias_walk_time_s)
+        self._gyro_bias_rad_s = np.asarray(g.initial_bias_deg_h, dtype=float) * DEG_H_RAD_S
+        self._wheel_sigma_rad_s = float(cfg.wheel_speed_noise_rad_s)
+
+    @property
+    def gyro_bias_rad_s(self) -> np.ndarray:
+        """Return the gyro's current true bias (without a fault step), rad/s, for truth logging."""
+        return self._gyro_bias_rad_s.copy()
+
+    def measure(
+        self,
+        t_s: float,
+        state: AttitudeState,
+        dt_s: float,
+        star_tracker_out: bool = False,
+        gyro_bias_step_rad_s: np.ndarray | None = None,
+    ) -> SensorReadings:
+        """Return the readings at true time t_s of the true state; dt_s is the time since the previous call.
+
+        The star tracker updates when t_s enters a new 1/rate_hz slot of true time and holds its reading otherwise;
+        gyro_bias_step_rad_s (3,) is a fault's extra bias, added while it is given.
+        """
+        if not dt_s > 0.0:
+            raise SensorError(f"dt_s must be > 0, got {dt_s}")
+        omega = np.asarray(state.omega_rad_s, dtype=float)
+        speeds = np.asarray(state.wheel_speed_rad_s, dtype=float)
+        if omega.shape != (3,):
+            raise SensorError(f"state.omega_rad_s must have shape (3,), got {omega.shape}")
+        if speeds.shape != (self.n_wheels,):
+            raise SensorError(f"state.wheel_speed_rad_s must have shape ({self.n_wheels},), got {speeds.shape}")
+        rng = self._rng
+        self._gyro_bias_rad_s = self._gyro_bias_rad_s + self._rrw_rad_s_sqrt_s * math.sqrt(dt_s) * rng.standard_normal(3)
+        gyro = omega + self._gyro_bias_rad_s + (self._arw_rad_sqrt_s / math.sqrt(dt_s)) * rng.standard_normal(3)
+        if gyro_bias_step_rad_s is not None:
+            step = np.asarray(gyro_bias_step_rad_s, dtype=float)
+            if step.shape != (3,):
+                raise SensorError(f"gyro_bias_step_rad_s must have shape (3,), got {step.shape}")
+            gyro = gyro + step
+        wheels = speeds + self._wheel_sigma_rad_s * rng.standard_normal(self.n_wheels)
+        return SensorReadings(
+            star_tracker_q=self._star_tracker(t_s, state, star_tracker_out),
+            gyro_rad_s=gyro,
+            wheel_speed_rad_s=wheels,
+        )
+
+    def _star_tracker(self, t_s: float, state: AttitudeState, out: bool) -> np.ndarray | None:
+        """Return the star tracker quaternion at t_s: a fresh noisy one at each update slot, else the held one."""
+        if out:
+            # After an outage the tracker reacquires with a fresh solution rather than a stale one.
+            self._st_held = None
+            self._st_slot = None
+            return None
+        slot = math.floor(t_s * self._st_rate_hz + 1e-9)
+        if self._st_held is None or slot != self._st_slot:
+            q_true = np.asarray(state.q, dtype=float)
+            if q_true.shape != (4,):
+                raise SensorError(f"state.q must have shape (4,), got {q_true.shape}")
+            error = self._st_bias_rad + self._st_sigma_rad * self._rng.standard_normal(3)
+            # Errors are small rotations about the tracker (body) axes: R_meas = R_true R(error).
+            q = quaternion_multiply(q_true, quaternion_from_rotvec(error))
+            self._st_held = q / np.linalg.norm(q)
+            self._st_slot = slot
+        return self._st_held.copy()
