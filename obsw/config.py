@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field
 
 from flyby.model import Frozen
@@ -24,6 +26,88 @@ class ModesConfig(Frozen):
     target_lost_timeout_s: float = Field(10.0, gt=0, description="declare the target lost after this long unseen, s")
 
 
+class ImagingConfig(Frozen):
+    """Imaging subsystem: binning, 12->8 bit compression, binarisation, labelling and target identification.
+
+    Pixel quantities are at the binned (512x512) scale; brightness is in 8-bit compressed DN.
+    """
+
+    fov_deg: float = Field(
+        2.9, gt=0, lt=90, description="on-board knowledge of the horizontal field of view, deg (paper)"
+    )
+    bit_depth: int = Field(12, ge=8, le=16, description="bits per pixel of the raw frames (paper: 12)")
+    binned_size_px: int = Field(512, gt=0, description="side of the binned image, px (paper: 512x512)")
+    compression_law: Literal["sqrt", "shift"] = Field(
+        "sqrt",
+        description="12->8 bit law: 'sqrt' = round(255 sqrt(v / vmax)), the square-root companding LUT of "
+        "planetary cameras (MER/MSL), which keeps the shot-noise-limited faint signal; "
+        "'shift' = v >> (bit_depth - 8), a plain linear truncation",
+    )
+    noise_k_sigma: float = Field(
+        5.0,
+        gt=0,
+        description="threshold floor = background median + this many robust sigmas (8-bit DN); 5 sigma gives "
+        "about 0.1 Gaussian false pixel per 512x512 frame",
+    )
+    min_threshold_margin_dn8: int = Field(
+        3,
+        ge=1,
+        le=254,
+        description="threshold floor is at least this far above the background median, 8-bit DN (3 DN: about ten "
+        "times the 0.29 DN quantisation noise, for frames whose noise is below one DN)",
+    )
+    min_body_area_px: int = Field(
+        2,
+        ge=1,
+        description="smallest blob, px at 512 scale, that may be a body: a hot pixel or cosmic-ray hit binned "
+        "is one pixel",
+    )
+    max_body_elongation: float = Field(
+        8.0,
+        ge=1,
+        description="largest major/minor axis ratio (second moments) of a body; a lit crescent at 135 deg "
+        "phase is about 5, a thin plume ray or a smeared star more",
+    )
+    max_didymos_jump_px: float = Field(
+        80.0,
+        gt=0,
+        description="largest Didymos motion between consecutive frames, px at 512 scale (paper: escape rate "
+        "< 0.4 deg/s, i.e. 71 px in a 1 s frame period)",
+    )
+    dimorphos_max_separation_didymos_diameters: float = Field(
+        2.0,
+        gt=0,
+        description="largest Didymos-Dimorphos centroid distance in apparent Didymos diameters (orbit radius "
+        "1.19 km / diameter 0.78 km = 1.53, plus margin for the lit-extent bias)",
+    )
+    dimorphos_max_area_fraction: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="largest Dimorphos/Didymos blob area ratio (diameters 164/780 m give 0.044; margin for "
+        "phase and a Didymos partly out of the frame)",
+    )
+    dimorphos_min_peak_fraction: float = Field(
+        0.3,
+        ge=0,
+        le=1,
+        description="smallest Dimorphos/Didymos peak-brightness ratio in 8-bit DN (same albedo; rejects faint "
+        "stars and the diffuse plume; sqrt compression maps a 10x dimmer peak to 0.32)",
+    )
+    dimorphos_max_relative_jump_didymos_diameters: float = Field(
+        0.5,
+        gt=0,
+        description="largest change between frames of the Dimorphos offset from Didymos, in Didymos diameters "
+        "(at C/A the 1.19 km baseline turns at up to 7/55 rad/s, 0.13 of the 1.5 diameter separation per s)",
+    )
+    centroid_noise_px: float = Field(
+        2.0,
+        ge=0,
+        description="centroid jitter allowed on top of every continuity gate, px at 512 scale (a few pixels of "
+        "binarisation and shape change)",
+    )
+
+
 class ObswConfig(Frozen):
     """Everything the on-board software is configured with before the flyby."""
 
@@ -35,3 +119,4 @@ class ObswConfig(Frozen):
     )
     control: ControlConfig = ControlConfig()
     modes: ModesConfig = ModesConfig()
+    imaging: ImagingConfig = ImagingConfig()

@@ -1,0 +1,501 @@
+"""Imaging subsystem: from a raw 12-bit frame to the offsets of Didymos and Dimorphos from the image centre.
+
+Emulates the LICIACube pipeline (paper, "Imaging Subsystem"): steps 1-3 are the FPGA's, step 4 the OBSW's.
+
+1. Filtering: bin the 1024x1024 (or 2048x2048) frame to 512x512 by the rounded mean of 2x2 (4x4) blocks, which
+   keeps the raw bit depth, then compress to 8 bit through a monotonic look-up table (``ImagingConfig``:
+   square-root companding by default, or a plain shift).
+2. Binarisation: the threshold comes from the 8-bit luminance histogram. It is the larger of Otsu's threshold
+   (the split that maximises the between-class variance) and a noise floor, background median + k robust
+   sigmas (1.4826 x the median absolute deviation, both read off the histogram). Otsu separates the lit
+   bodies from the background and the diffuse plume when the bodies fill enough pixels; when they fill only
+   a few pixels, or none (blank frame), Otsu falls inside the background noise and the floor takes over.
+   Stars and hot pixels are a negligible part of the histogram, so they move neither statistic; they survive
+   binarisation and are rejected by identification. A pixel is foreground when its 8-bit value is above
+   the threshold (OpenCV THRESH_BINARY semantics).
+3. Object detection: 8-connected component labelling by run-length encoding and a vectorised union-find of
+   overlapping runs of adjacent rows; labels are numbered in raster order of each component's first pixel.
+4. Feature extraction and identification: area, binary centroid (mean pixel position, pixel centres at
+   integer coordinates, as OpenCV's connectedComponentsWithStats), bounding box, second-moment elongation,
+   mean and peak 8-bit brightness of every blob; then Didymos and Dimorphos are told from stars, hot pixels
+   and the plume by area, compactness, brightness, geometry and continuity with the previous frame
+   (see ``identify_bodies``).
+
+Image x (columns) is body +X, image y (rows) body +Y, the boresight body +Z; the image centre is at
+((n - 1) / 2, (n - 1) / 2) in pixel-centre coordinates of the n x n binned image.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from obsw.config import ImagingConfig
+
+MAD_TO_SIGMA = 1.4826  # one Gaussian sigma per median absolute deviation
+
+
+class FrameError(ValueError):
+    """A frame cannot be processed: wrong shape, type or pixel values for the imaging configuration."""
+
+
+@dataclass(frozen=True, slots=True)
+class Blob:
+    """One 8-connected region of the binarised 512x512 image."""
+
+    label: int  # 1-based, raster order of the region's first pixel (OpenCV numbering)
+    area_px: int
+    centroid_col_row: tuple[float, float]  # binary centroid, px at the binned scale
+    bbox_col_row_w_h: tuple[int, int, int, int]  # left column, top row, width, height, px
+    mean_dn8: float  # mean 8-bit brightness of the region's pixels
+    peak_dn8: int
+    elongation: float  # major/minor axis ratio from the second central moments (1 for a disc)
+
+    @property
+    def diameter_px(self) -> int:
+        """Largest side of the bounding box: the apparent diameter of a body, even a crescent."""
+        return max(self.bbox_col_row_w_h[2], self.bbox_col_row_w_h[3])
+
+
+@dataclass(frozen=True, slots=True)
+class Detections:
+    """What the imaging subsystem reports for one frame."""
+
+    blobs: tuple[Blob, ...]
+    didymos: Blob | None
+    dimorphos: Blob | None
+    didymos_offset_px: tuple[float, float] | None  # (col, row) offset from the image centre, 512 scale
+    dimorphos_offset_px: tuple[float, float] | None
+    didymos_offset_rad: tuple[float, float] | None  # atan(offset_px / f_px) about body +Y (col) and +X (row)
+    dimorphos_offset_rad: tuple[float, float] | None
+    threshold_dn8: int  # foreground is above this 8-bit value
+    background_dn8: int  # median of the 8-bit histogram
+    noise_sigma_dn8: float  # robust sigma of the background
+    binned_size_px: int
+
+
+@dataclass(frozen=True, slots=True)
+class Binarisation:
+    """The threshold chosen on the 8-bit histogram and the statistics it came from."""
+
+    threshold_dn8: int
+    otsu_dn8: int
+    background_dn8: int
+    noise_sigma_dn8: float
+
+
+def compression_lut(cfg: ImagingConfig) -> np.ndarray:
+    """Return the uint8 look-up table, one entry per raw value, of the configured 12->8 bit law (monotonic)."""
+    vmax = (1 << cfg.bit_depth) - 1
+    values = np.arange(vmax + 1, dtype=np.float64)
+    if cfg.compression_law == "sqrt":
+        return np.floor(255.0 * np.sqrt(values / vmax) + 0.5).astype(np.uint8)
+    return (np.arange(vmax + 1, dtype=np.int64) >> (cfg.bit_depth - 8)).astype(np.uint8)
+
+
+_LUT_CACHE: dict[tuple[int, str], np.ndarray] = {}
+
+
+def _lut(cfg: ImagingConfig) -> np.ndarray:
+    """Return the compression table of ``cfg``, built once per law (it is a constant of the FPGA)."""
+    key = (cfg.bit_depth, cfg.compression_law)
+    lut = _LUT_CACHE.get(key)
+    if lut is None:
+        lut = compression_lut(cfg)
+        lut.setflags(write=False)
+        _LUT_CACHE[key] = lut
+    return lut
+
+
+def binned(frame: np.ndarray, cfg: ImagingConfig) -> np.ndarray:
+    """Return the frame binned to cfg.binned_size_px by the rounded mean of square blocks (raw bit depth)."""
+    if frame.ndim != 2 or frame.shape[0] != frame.shape[1]:
+        raise FrameError(f"frame must be a square 2-D array, got shape {frame.shape}")
+    if frame.dtype.kind not in "ui":
+        raise FrameError(f"frame must hold integers, got dtype {frame.dtype}")
+    n = cfg.binned_size_px
+    side = frame.shape[0]
+    if side % n != 0:
+        raise FrameError(f"frame side {side} px is not a multiple of binned_size_px {n}")
+    f = side // n
+    vmax = (1 << cfg.bit_depth) - 1
+    # a value beyond the bit depth would wrap the block sums: refuse it rather than alias it
+    if int(frame.max(initial=0)) > vmax or (frame.dtype.kind == "i" and int(frame.min(initial=0)) < 0):
+        raise FrameError(f"frame pixel values exceed the {cfg.bit_depth}-bit range 0..{vmax}")
+    acc = np.uint16 if vmax * f * f <= 0xFFFF else np.uint32
+    a = frame if frame.dtype == acc else frame.astype(acc)
+    if f == 1:
+        return a.copy()
+    # sum the f rows of each block (consecutive slices of a reshaped row), then its f columns
+    rows = a.reshape(n, f * side)
+    s = rows[:, :side] + rows[:, side : 2 * side]
+    for k in range(2, f):
+        s += rows[:, k * side : (k + 1) * side]
+    cols = s.reshape(n, n, f)
+    out = cols[:, :, 0] + cols[:, :, 1]
+    for k in range(2, f):
+        out += cols[:, :, k]
+    area = f * f
+    out += area // 2
+    if area & (area - 1) == 0:
+        out >>= area.bit_length() - 1
+    else:
+        out //= area
+    return out
+
+
+def compressed_8bit(binned_image: np.ndarray, cfg: ImagingConfig) -> np.ndarray:
+    """Return the 8-bit image of the configured compression law (for display and downlink)."""
+    return np.take(_lut(cfg), binned_image)
+
+
+def otsu_threshold(hist: np.ndarray) -> int:
+    """Return Otsu's threshold t of a histogram: classes v <= t and v > t with the largest between-class variance.
+
+    Same definition as OpenCV's THRESH_OTSU: 0 when no split leaves both classes non-empty, first maximum on ties.
+    """
+    h = np.asarray(hist, dtype=np.float64)
+    total = h.sum()
+    if total <= 0:
+        return 0
+    p = h / total
+    levels = np.arange(h.size, dtype=np.float64)
+    q1 = np.cumsum(p)
+    m1 = np.cumsum(p * levels)
+    mu = m1[-1]
+    q2 = 1.0 - q1
+    eps = float(np.finfo(np.float32).eps)
+    valid = (np.minimum(q1, q2) >= eps) & (np.maximum(q1, q2) <= 1.0 - eps)
+    if not valid.any():
+        return 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu1 = m1 / q1
+        mu2 = (mu - m1) / q2
+        sigma = q1 * q2 * (mu1 - mu2) ** 2
+    sigma = np.where(valid, sigma, -1.0)
+    return int(np.argmax(sigma))
+
+
+def binarisation(hist8: np.ndarray, cfg: ImagingConfig) -> Binarisation:
+    """Return the threshold of an 8-bit histogram: max(Otsu, background median + k robust sigma)."""
+    h = np.asarray(hist8, dtype=np.int64)
+    total = int(h.sum())
+    if total <= 0:
+        raise FrameError("empty histogram: the frame has no pixels")
+    cum = np.cumsum(h)
+    median = int(np.searchsorted(cum, (total + 1) // 2))
+    # histogram of |v - median|: fold the histogram about the median
+    levels = np.arange(h.size)
+    dev_hist = np.bincount(np.abs(levels - median), weights=h, minlength=h.size)
+    mad = int(np.searchsorted(np.cumsum(dev_hist), (total + 1) // 2))
+    sigma = MAD_TO_SIGMA * mad
+    floor = median + max(math.ceil(cfg.noise_k_sigma * sigma), cfg.min_threshold_margin_dn8)
+    otsu = otsu_threshold(h)
+    return Binarisation(
+        threshold_dn8=int(max(otsu, floor)), otsu_dn8=otsu, background_dn8=median, noise_sigma_dn8=float(sigma)
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class Components:
+    """Per-component statistics of a binary image, components in raster order of their first pixel."""
+
+    area_px: np.ndarray  # int64 (K,)
+    centroid_col: np.ndarray  # float64 (K,)
+    centroid_row: np.ndarray
+    left: np.ndarray  # int64 (K,)
+    top: np.ndarray
+    width: np.ndarray
+    height: np.ndarray
+    elongation: np.ndarray  # float64 (K,)
+    pixel_index: np.ndarray  # flat indices of the foreground pixels, raster order (N,)
+    pixel_component: np.ndarray  # component (0-based) of each foreground pixel (N,)
+
+
+def _root_of_each_run(n_runs: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Return, for each run, the smallest run index of its connected set, given the edges (a, b) between runs."""
+    parent = np.arange(n_runs, dtype=np.int64)
+    if a.size == 0:
+        return parent
+    while True:
+        pa = parent[a]
+        pb = parent[b]
+        differ = pa != pb
+        if not differ.any():
+            return parent
+        pa = pa[differ]
+        pb = pb[differ]
+        lo = np.minimum(pa, pb)
+        hi = np.maximum(pa, pb)
+        # hook each root onto the smallest root it touches; roots only point down, so no cycle can form
+        np.minimum.at(parent, hi, lo)
+        # pointer jumping until every run points at its root
+        while True:
+            grand = parent[parent]
+            if np.array_equal(grand, parent):
+                break
+            parent = grand
+        a = a[differ]
+        b = b[differ]
+
+
+def _sum_of_squares_to(x: np.ndarray) -> np.ndarray:
+    """Return 0^2 + 1^2 + ... + x^2 for each integer x >= -1 (0 for x = -1 and x = 0)."""
+    return x * (x + 1) * (2 * x + 1) / 6.0
+
+
+def connected_components(mask: np.ndarray) -> Components:
+    """Return the 8-connected components of a 2-D boolean image with their area, centroid, box and shape."""
+    if mask.ndim != 2:
+        raise FrameError(f"mask must be 2-D, got shape {mask.shape}")
+    height, width = mask.shape
+    # runs: maximal horizontal segments of foreground; a zero column after each row (and a zero before the
+    # first) makes every run start on a 0->1 and end on a 1->0 step of the flattened padded image
+    stride = width + 1
+    padded = np.zeros(height * stride + 1, dtype=np.int8)
+    padded[1:].reshape(height, stride)[:, :width] = mask
+    steps = np.flatnonzero(padded[1:] != padded[:-1])
+    starts = steps[0::2]  # flat index, in the padded grid, of each run's first pixel
+    ends = steps[1::2] - 1  # ... and of its last pixel
+    n_runs = starts.size
+    if n_runs == 0:
+        empty_i = np.zeros(0, dtype=np.int64)
+        empty_f = np.zeros(0, dtype=np.float64)
+        return Components(empty_i, empty_f, empty_f, empty_i, empty_i, empty_i, empty_i, empty_f, empty_i, empty_i)
+    run_row = starts // stride
+    run_c0 = starts - run_row * stride
+    run_c1 = ends - run_row * stride
+    run_len = run_c1 - run_c0 + 1
+    # runs of row r and r+1 touch (8-connectivity) when c0' <= c1 + 1 and c1' >= c0 - 1; in the padded grid
+    # these bounds fall on a padding column at worst, never on a run of another row, so two sorted searches
+    # find every touching run of the next row
+    lo = np.searchsorted(ends, starts + stride - 1, side="left")
+    hi = np.searchsorted(starts, ends + stride + 1, side="right")
+    count = np.maximum(hi - lo, 0)
+    total = int(count.sum())
+    if total:
+        src = np.repeat(np.arange(n_runs, dtype=np.int64), count)
+        offsets = np.cumsum(count) - count
+        dst = np.repeat(lo - offsets, count) + np.arange(total, dtype=np.int64)
+    else:
+        src = dst = np.zeros(0, dtype=np.int64)
+    root = _root_of_each_run(n_runs, src, dst)
+    # a root is the first run of its component in raster order, so numbering roots in order numbers components
+    is_root = root == np.arange(n_runs)
+    roots = np.flatnonzero(is_root)
+    run_comp = (np.cumsum(is_root) - 1)[root]
+    k = roots.size
+    lenf = run_len.astype(np.float64)
+    rowf = run_row.astype(np.float64)
+    area = np.bincount(run_comp, weights=lenf, minlength=k)
+    run_sum_col = (run_c0 + run_c1) * lenf * 0.5
+    run_sum_col2 = _sum_of_squares_to(run_c1.astype(np.float64)) - _sum_of_squares_to(run_c0 - 1.0)
+    cc = np.bincount(run_comp, weights=run_sum_col, minlength=k) / area
+    cr = np.bincount(run_comp, weights=rowf * lenf, minlength=k) / area
+    # second central moments from raw moments, each pixel a unit square (variance 1/12 per axis)
+    mu20 = np.bincount(run_comp, weights=run_sum_col2, minlength=k) / area - cc * cc + 1.0 / 12.0
+    mu02 = np.bincount(run_comp, weights=rowf * rowf * lenf, minlength=k) / area - cr * cr + 1.0 / 12.0
+    mu11 = np.bincount(run_comp, weights=rowf * run_sum_col, minlength=k) / area - cc * cr
+    half_sum = 0.5 * (mu20 + mu02)
+    root_term = np.sqrt(0.25 * (mu20 - mu02) ** 2 + mu11 * mu11)
+    elongation = np.sqrt((half_sum + root_term) / np.maximum(half_sum - root_term, 1.0 / 12.0))
+    left = np.full(k, width, dtype=np.int64)
+    np.minimum.at(left, run_comp, run_c0)
+    right = np.zeros(k, dtype=np.int64)
+    np.maximum.at(right, run_comp, run_c1)
+    top = run_row[roots]
+    bottom = np.zeros(k, dtype=np.int64)
+    np.maximum.at(bottom, run_comp, run_row)
+    return Components(
+        area_px=area.astype(np.int64),
+        centroid_col=cc,
+        centroid_row=cr,
+        left=left,
+        top=top,
+        width=right - left + 1,
+        height=bottom - top + 1,
+        elongation=elongation,
+        pixel_index=np.flatnonzero(mask),
+        pixel_component=np.repeat(run_comp, run_len),
+    )
+
+
+def focal_length_px(fov_deg: float, width_px: int) -> float:
+    """Return the pinhole focal length in pixels of an image width_px wide spanning fov_deg horizontally."""
+    if not 0.0 < fov_deg < 180.0:
+        raise ValueError(f"fov_deg must be in (0, 180), got {fov_deg}")
+    if width_px <= 0:
+        raise ValueError(f"width_px must be positive, got {width_px}")
+    return 0.5 * width_px / math.tan(math.radians(0.5 * fov_deg))
+
+
+def los_body(offset_col_px: float, offset_row_px: float, fov_deg: float, width_px: int) -> np.ndarray:
+    """Return the unit line of sight in body axes of an image offset from the centre (boresight +Z).
+
+    Columns run along body +X and rows along body +Y, so the pinhole ray is (col, row, f_px) normalised.
+    """
+    f = focal_length_px(fov_deg, width_px)
+    v = np.array([offset_col_px, offset_row_px, f], dtype=np.float64)
+    return v / np.linalg.norm(v)
+
+
+def offset_rad(offset_px: tuple[float, float], fov_deg: float, width_px: int) -> tuple[float, float]:
+    """Return the pinhole angles atan(offset / f_px) of a (col, row) pixel offset from the image centre."""
+    f = focal_length_px(fov_deg, width_px)
+    return (math.atan(offset_px[0] / f), math.atan(offset_px[1] / f))
+
+
+def _distance(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Return the Euclidean distance between two (col, row) points."""
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+def _relative(blob: Blob, origin: Blob) -> tuple[float, float]:
+    """Return the centroid of ``blob`` relative to the centroid of ``origin``."""
+    return (
+        blob.centroid_col_row[0] - origin.centroid_col_row[0],
+        blob.centroid_col_row[1] - origin.centroid_col_row[1],
+    )
+
+
+def _largest(blobs: list[Blob]) -> Blob:
+    """Return the blob of largest area, the brighter peak breaking ties."""
+    return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
+
+
+def identify_bodies(
+    blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: Detections | None = None
+) -> tuple[Blob | None, Blob | None]:
+    """Return (didymos, dimorphos) among the blobs, either None when not seen.
+
+    Body candidates are blobs of at least ``min_body_area_px`` (rejects hot pixels, noise and faint stars) and
+    at most ``max_body_elongation`` (rejects plume rays and smeared stars).
+    Didymos is the largest candidate; with a previous frame, candidates within ``max_didymos_jump_px`` of a
+    previous body go to the nearer one's track, so Didymos is the largest candidate that continues it, and a
+    frame where only the Dimorphos track continues (Didymos out of the field near C/A) reports Dimorphos alone.
+    Dimorphos is a smaller candidate (area at most ``dimorphos_max_area_fraction`` of Didymos, peak at least
+    ``dimorphos_min_peak_fraction`` of Didymos's) within ``dimorphos_max_separation_didymos_diameters`` of
+    Didymos; among those, the one whose offset from Didymos continues the previous one (stars move relative to
+    Didymos at the tracking rate), else the largest. Before Dimorphos is resolved (merged with Didymos or below
+    the minimum area) it is None.
+    """
+    candidates = [
+        b for b in blobs if b.area_px >= cfg.min_body_area_px and b.elongation <= cfg.max_body_elongation
+    ]
+    if not candidates:
+        return None, None
+    prev_did = previous.didymos if previous is not None else None
+    prev_dim = previous.dimorphos if previous is not None else None
+    didymos: Blob | None = None
+    if prev_did is not None or prev_dim is not None:
+        did_track: list[Blob] = []
+        dim_track: list[Blob] = []
+        for b in candidates:
+            d_did = _distance(b.centroid_col_row, prev_did.centroid_col_row) if prev_did else math.inf
+            d_dim = _distance(b.centroid_col_row, prev_dim.centroid_col_row) if prev_dim else math.inf
+            if min(d_did, d_dim) > cfg.max_didymos_jump_px + cfg.centroid_noise_px:
+                continue
+            (did_track if d_did <= d_dim else dim_track).append(b)
+        if did_track:
+            didymos = _largest(did_track)
+        elif dim_track and prev_did is not None and prev_dim is not None:
+            # Didymos left the field (or fell below the threshold): only the Dimorphos track continues
+            return None, _largest(dim_track)
+    if didymos is None:
+        didymos = _largest(candidates)
+    gate = cfg.dimorphos_max_separation_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+    in_gate = [
+        b
+        for b in candidates
+        if b is not didymos
+        and b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px
+        and b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
+        and _distance(b.centroid_col_row, didymos.centroid_col_row) <= gate
+    ]
+    if not in_gate:
+        return didymos, None
+    if prev_did is not None and prev_dim is not None:
+        predicted = _relative(prev_dim, prev_did)
+        jump = cfg.dimorphos_max_relative_jump_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+        continuing = [b for b in in_gate if _distance(_relative(b, didymos), predicted) <= jump]
+        if continuing:
+            return didymos, min(continuing, key=lambda b: _distance(_relative(b, didymos), predicted))
+    return didymos, _largest(in_gate)
+
+
+def blobs_of(components: Components, values8: np.ndarray) -> tuple[Blob, ...]:
+    """Return the Blob records of labelled components, with brightness from the 8-bit foreground pixel values."""
+    k = components.area_px.size
+    if k == 0:
+        return ()
+    comp = components.pixel_component
+    mean = np.bincount(comp, weights=values8, minlength=k) / components.area_px
+    peak = np.zeros(k, dtype=np.int64)
+    np.maximum.at(peak, comp, values8)
+    return tuple(
+        Blob(
+            label=i + 1,
+            area_px=area,
+            centroid_col_row=(c, r),
+            bbox_col_row_w_h=(x, y, w, h),
+            mean_dn8=m,
+            peak_dn8=p,
+            elongation=e,
+        )
+        for i, (area, c, r, x, y, w, h, m, p, e) in enumerate(
+            zip(
+                components.area_px.tolist(),
+                components.centroid_col.tolist(),
+                components.centroid_row.tolist(),
+                components.left.tolist(),
+                components.top.tolist(),
+                components.width.tolist(),
+                components.height.tolist(),
+                mean.tolist(),
+                peak.tolist(),
+                components.elongation.tolist(),
+                strict=True,
+            )
+        )
+    )
+
+
+def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | None = None) -> Detections:
+    """Return the blobs of a raw frame and the identified Didymos and Dimorphos with their offsets from centre."""
+    image = binned(frame, cfg)
+    n = cfg.binned_size_px
+    lut = _lut(cfg)
+    hist_raw = np.bincount(image.ravel(), minlength=lut.size)
+    hist8 = np.bincount(lut, weights=hist_raw, minlength=256)
+    thr = binarisation(hist8, cfg)
+    # lut[v] > T  <=>  v >= first raw value mapped above T (the table is monotonic): threshold the raw image
+    first_above = int(np.searchsorted(lut, thr.threshold_dn8, side="right"))
+    components = connected_components(image >= first_above)
+    values8 = lut[image.ravel()[components.pixel_index]]
+    blobs = blobs_of(components, values8)
+    didymos, dimorphos = identify_bodies(blobs, cfg, previous)
+    centre = 0.5 * (n - 1)
+
+    def offsets(b: Blob | None) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+        if b is None:
+            return None, None
+        px = (b.centroid_col_row[0] - centre, b.centroid_col_row[1] - centre)
+        return px, offset_rad(px, cfg.fov_deg, n)
+
+    did_px, did_rad = offsets(didymos)
+    dim_px, dim_rad = offsets(dimorphos)
+    return Detections(
+        blobs=blobs,
+        didymos=didymos,
+        dimorphos=dimorphos,
+        didymos_offset_px=did_px,
+        dimorphos_offset_px=dim_px,
+        didymos_offset_rad=did_rad,
+        dimorphos_offset_rad=dim_rad,
+        threshold_dn8=thr.threshold_dn8,
+        background_dn8=thr.background_dn8,
+        noise_sigma_dn8=thr.noise_sigma_dn8,
+        binned_size_px=n,
+    )

@@ -1,0 +1,318 @@
+"""The imaging subsystem agrees with an independent OpenCV pipeline and finds Didymos and Dimorphos."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
+from opencv_reference import (
+    SyntheticBody,
+    reference_8bit,
+    reference_binned,
+    reference_pipeline,
+    synthetic_frame,
+)
+
+from obsw.config import ImagingConfig, ObswConfig
+from obsw.imaging import (
+    Blob,
+    Detections,
+    FrameError,
+    binarisation,
+    binned,
+    compressed_8bit,
+    compression_lut,
+    connected_components,
+    focal_length_px,
+    identify_bodies,
+    los_body,
+    offset_rad,
+    otsu_threshold,
+    process_frame,
+)
+
+CFG = ImagingConfig()
+
+
+def _sorted_stats(areas: np.ndarray, cc: np.ndarray, cr: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Return component statistics as rows sorted lexicographically, so label numbering does not matter."""
+    table = np.column_stack([areas, cc, cr, boxes]).astype(np.float64)
+    return table[np.lexsort(table.T[::-1])]
+
+
+def _ours(mask: np.ndarray) -> np.ndarray:
+    c = connected_components(mask)
+    boxes = np.column_stack([c.left, c.top, c.width, c.height]) if c.area_px.size else np.zeros((0, 4))
+    return _sorted_stats(c.area_px, c.centroid_col, c.centroid_row, boxes)
+
+
+def _opencv(mask: np.ndarray) -> np.ndarray:
+    _, _, stats, cent = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
+    return _sorted_stats(stats[1:, 4], cent[1:, 0], cent[1:, 1], stats[1:, :4])
+
+
+def test_binning_1024_equals_opencv_inter_area() -> None:
+    """2x2 rounded-mean binning equals cv2.resize INTER_AREA pixel for pixel."""
+    frame = np.random.default_rng(0).integers(0, 4096, (1024, 1024), dtype=np.uint16)
+    np.testing.assert_array_equal(binned(frame, CFG), reference_binned(frame, 512))
+
+
+def test_binning_2048_is_the_rounded_block_mean() -> None:
+    """4x4 binning is floor(mean + 1/2) of each block, and within 1 DN of cv2 INTER_AREA."""
+    frame = np.random.default_rng(1).integers(0, 4096, (2048, 2048), dtype=np.uint16)
+    ours = binned(frame, CFG)
+    exact = np.floor(frame.reshape(512, 4, 512, 4).mean(axis=(1, 3)) + 0.5)
+    np.testing.assert_array_equal(ours, exact)
+    assert np.abs(ours.astype(np.int64) - reference_binned(frame, 512)).max() <= 1
+
+
+@pytest.mark.parametrize("law", ["sqrt", "shift"])
+def test_compression_equals_opencv_law(law: str) -> None:
+    """The 8-bit table equals the OpenCV computation of the same law on every 12-bit value, and is monotonic."""
+    cfg = ImagingConfig(compression_law=law)
+    values = np.arange(4096, dtype=np.uint16).reshape(64, 64)
+    np.testing.assert_array_equal(compressed_8bit(values, cfg), reference_8bit(values, 12, law))
+    lut = compression_lut(cfg)
+    assert lut[0] == 0 and lut[-1] == 255 and np.all(np.diff(lut.astype(int)) >= 0)
+
+
+def _between_class_variance(hist: np.ndarray, t: int) -> float:
+    """Return the Otsu criterion w0 w1 (mu0 - mu1)^2 of splitting a histogram into v <= t and v > t."""
+    p = hist / hist.sum()
+    v = np.arange(p.size)
+    w0, w1 = p[: t + 1].sum(), p[t + 1 :].sum()
+    if w0 == 0 or w1 == 0:
+        return 0.0
+    return float(w0 * w1 * ((p[: t + 1] * v[: t + 1]).sum() / w0 - (p[t + 1 :] * v[t + 1 :]).sum() / w1) ** 2)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    image=hnp.arrays(np.uint8, st.tuples(st.integers(1, 40), st.integers(1, 40)), elements=st.integers(0, 255))
+)
+def test_otsu_threshold_matches_opencv(image: np.ndarray) -> None:
+    """Our Otsu threshold reaches OpenCV's maximum between-class variance (equal thresholds up to ties)."""
+    cv_t, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+    hist = np.bincount(image.ravel(), minlength=256)
+    ours = otsu_threshold(hist)
+    assert _between_class_variance(hist, ours) == pytest.approx(_between_class_variance(hist, int(cv_t)), rel=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(values=hnp.arrays(np.uint8, st.integers(1, 500), elements=st.integers(0, 255)))
+def test_background_median_and_mad_are_the_sample_statistics(values: np.ndarray) -> None:
+    """The histogram median and MAD equal the lower sample median and lower median absolute deviation."""
+    hist = np.bincount(values, minlength=256)
+    b = binarisation(hist, CFG)
+    k = (values.size - 1) // 2
+    median = int(np.partition(values, k)[k])
+    mad = int(np.partition(np.abs(values.astype(int) - median), k)[k])
+    assert b.background_dn8 == median
+    assert b.noise_sigma_dn8 == pytest.approx(1.4826 * mad)
+    floor = median + max(math.ceil(CFG.noise_k_sigma * 1.4826 * mad), CFG.min_threshold_margin_dn8)
+    assert b.threshold_dn8 == max(floor, b.otsu_dn8)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    mask=hnp.arrays(np.bool_, st.tuples(st.integers(1, 48), st.integers(1, 48)), elements=st.booleans())
+)
+def test_labelling_matches_opencv_on_random_images(mask: np.ndarray) -> None:
+    """Same components as cv2.connectedComponentsWithStats (8-conn): count, areas, centroids, boxes."""
+    np.testing.assert_allclose(_ours(mask), _opencv(mask), rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("density", [0.05, 0.45, 0.75])
+def test_labelling_matches_opencv_full_size(density: float) -> None:
+    """On 512x512 random images from sparse to percolating, the components equal OpenCV's."""
+    mask = np.random.default_rng(int(density * 100)).random((512, 512)) < density
+    np.testing.assert_allclose(_ours(mask), _opencv(mask), rtol=0, atol=1e-9)
+
+
+def test_labels_are_numbered_in_raster_order() -> None:
+    """Components are numbered by their first pixel in raster order (a U shape is one component)."""
+    mask = np.zeros((6, 8), dtype=bool)
+    mask[0, 5] = True  # first in raster order
+    mask[1, 0] = True
+    mask[2:5, 2] = mask[2:5, 5] = True
+    mask[4, 2:6] = True  # U joined at the bottom
+    c = connected_components(mask)
+    assert c.area_px.tolist() == [1, 1, 8]
+    assert (c.top.tolist(), c.left.tolist()) == ([0, 1, 2], [5, 0, 2])
+
+
+@pytest.mark.parametrize(("w", "h"), [(1, 1), (7, 1), (9, 3), (4, 12)])
+def test_elongation_of_rectangles_is_side_ratio(w: int, h: int) -> None:
+    """A w x h block of unit pixels has variances w^2/12 and h^2/12, so elongation max(w,h)/min(w,h)."""
+    mask = np.zeros((20, 20), dtype=bool)
+    mask[3 : 3 + h, 5 : 5 + w] = True
+    c = connected_components(mask)
+    assert c.elongation[0] == pytest.approx(max(w, h) / min(w, h))
+
+
+def test_focal_length_and_offsets_are_pinhole() -> None:
+    """An offset of half the width is at half the FOV; los_body is (x, y, f) normalised with +Z boresight."""
+    f = focal_length_px(2.9, 512)
+    assert math.degrees(offset_rad((256.0, -256.0), 2.9, 512)[0]) == pytest.approx(1.45)
+    assert math.degrees(offset_rad((256.0, -256.0), 2.9, 512)[1]) == pytest.approx(-1.45)
+    np.testing.assert_allclose(los_body(0.0, 0.0, 2.9, 512), [0.0, 0.0, 1.0])
+    v = los_body(30.0, -40.0, 2.9, 512)
+    np.testing.assert_allclose(v, np.array([30.0, -40.0, f]) / math.sqrt(2500.0 + f * f))
+
+
+@settings(max_examples=50, deadline=None)
+@given(col=st.floats(-256, 256), row=st.floats(-256, 256), fov=st.floats(0.5, 60))
+def test_los_body_agrees_with_offset_angles(col: float, row: float, fov: float) -> None:
+    """los_body is a unit vector whose x/z and y/z tangents are the tangents of offset_rad."""
+    v = los_body(col, row, fov, 512)
+    ax, ay = offset_rad((col, row), fov, 512)
+    assert np.linalg.norm(v) == pytest.approx(1.0)
+    assert v[2] > 0
+    assert v[0] / v[2] == pytest.approx(math.tan(ax), abs=1e-12)
+    assert v[1] / v[2] == pytest.approx(math.tan(ay), abs=1e-12)
+
+
+def _pair(did_col: float, did_row: float, radius: float, rel: tuple[float, float]) -> tuple[SyntheticBody, ...]:
+    """Didymos and a Dimorphos 4.75 times smaller at ``rel`` (px, 1024 scale) from it."""
+    return (
+        SyntheticBody(did_col, did_row, radius, 2500.0),
+        SyntheticBody(did_col + rel[0], did_row + rel[1], radius / 4.75, 2500.0),
+    )
+
+
+def _truth_512(b: SyntheticBody) -> tuple[float, float]:
+    """Centre of a synthetic body at the binned scale (pixel centres at integers at both scales)."""
+    return ((b.col - 0.5) / 2.0, (b.row - 0.5) / 2.0)
+
+
+def _reference_blob_at(ref, point: tuple[float, float]) -> int:  # type: ignore[no-untyped-def]
+    """Index of the OpenCV blob whose bounding box holds ``point`` (the largest such), or -1."""
+    best, best_area = -1, -1
+    for i, (x, y, w, h) in enumerate(ref.bboxes):
+        if x <= point[0] < x + w and y <= point[1] < y + h and ref.areas[i] > best_area:
+            best, best_area = i, int(ref.areas[i])
+    return best
+
+
+SCENES = [
+    # (Didymos radius px at 1024, Dimorphos offset px at 1024, plume?, seed)
+    (16.0, (40.0, -20.0), False, 10),  # separations within the 1.53 diameters of the real orbit
+    (40.0, (110.0, 40.0), True, 11),
+    (90.0, (-220.0, 60.0), True, 12),
+    (150.0, (330.0, -120.0), True, 13),
+]
+
+
+@pytest.mark.parametrize(("radius", "rel", "plume", "seed"), SCENES)
+def test_bodies_found_and_centroids_match_opencv(
+    radius: float, rel: tuple[float, float], plume: bool, seed: int
+) -> None:
+    """On synthetic frames with stars, hot pixels, noise and a plume, both bodies are identified at their true
+    places and each centroid is within 1 px (512 scale) of the OpenCV pipeline's blob there."""
+    bodies = _pair(500.0, 520.0, radius, rel)
+    frame = synthetic_frame(np.random.default_rng(seed), bodies=bodies, plume_from=1 if plume else None)
+    det = process_frame(frame, CFG)
+    ref = reference_pipeline(frame)
+    assert det.threshold_dn8 == ref.threshold_dn8
+    assert len(det.blobs) == ref.areas.size
+    for blob, body in ((det.didymos, bodies[0]), (det.dimorphos, bodies[1])):
+        assert blob is not None
+        truth = _truth_512(body)
+        # the lit centroid lies within a radius of the true centre (phase shifts it sunward)
+        assert math.dist(blob.centroid_col_row, truth) < body.radius_px / 2.0
+        i = _reference_blob_at(ref, truth)
+        assert i >= 0
+        assert math.dist(blob.centroid_col_row, tuple(ref.centroids[i])) <= 1.0
+        assert blob.area_px == ref.areas[i]
+
+
+def test_offsets_follow_the_image_axes() -> None:
+    """A body right of and below the centre has positive (col, row) offsets in px and rad, pinhole-consistent."""
+    body = SyntheticBody(511.5 + 160.0, 511.5 + 60.0, 30.0, 2500.0)
+    frame = synthetic_frame(
+        np.random.default_rng(5), bodies=(body,), sun_camera=(0.0, 0.0, -1.0), n_stars=0, n_hot_pixels=0
+    )
+    det = process_frame(frame, CFG)
+    assert det.didymos is not None and det.didymos_offset_px is not None and det.didymos_offset_rad is not None
+    assert det.didymos_offset_px == pytest.approx((80.0, 30.0), abs=0.2)
+    f = focal_length_px(CFG.fov_deg, 512)
+    assert det.didymos_offset_rad == pytest.approx(
+        (math.atan(det.didymos_offset_px[0] / f), math.atan(det.didymos_offset_px[1] / f))
+    )
+
+
+@pytest.mark.parametrize("value", [0, 40, 4095])
+def test_uniform_frames_have_no_blobs(value: int) -> None:
+    """A blank or saturated frame gives no blob and no body (the noise floor is above every pixel)."""
+    det = process_frame(np.full((1024, 1024), value, dtype=np.uint16), CFG)
+    assert det.blobs == () and det.didymos is None and det.dimorphos is None
+
+
+def test_noise_only_frame_has_no_body() -> None:
+    """Background noise, stars and hot pixels alone give no Didymos (nothing of body size and brightness)."""
+    frame = synthetic_frame(np.random.default_rng(6), bodies=(), n_stars=0, n_hot_pixels=40)
+    det = process_frame(frame, CFG)
+    assert det.didymos is None and all(b.area_px == 1 for b in det.blobs)
+
+
+@pytest.mark.parametrize(
+    ("frame", "message"),
+    [
+        (np.zeros((1024, 512), dtype=np.uint16), "square"),
+        (np.zeros((1000, 1000), dtype=np.uint16), "multiple"),
+        (np.zeros((1024, 1024), dtype=np.float32), "integers"),
+        (np.full((1024, 1024), 4096, dtype=np.uint16), "12-bit"),
+    ],
+)
+def test_bad_frames_raise_frame_error(frame: np.ndarray, message: str) -> None:
+    """A frame of the wrong shape, type or range raises FrameError naming what is wrong."""
+    with pytest.raises(FrameError, match=message):
+        process_frame(frame, CFG)
+
+
+def _blob(label: int, col: float, row: float, area: int, diameter: int, peak: int = 200) -> Blob:
+    """A compact blob for identification tests."""
+    return Blob(label, area, (col, row), (int(col), int(row), diameter, diameter), 150.0, peak, 1.1)
+
+
+def _detections(didymos: Blob | None, dimorphos: Blob | None) -> Detections:
+    blobs = tuple(b for b in (didymos, dimorphos) if b is not None)
+    return Detections(blobs, didymos, dimorphos, None, None, None, None, 100, 20, 1.0, 512)
+
+
+def test_continuity_prefers_the_true_dimorphos_over_a_bigger_star() -> None:
+    """A star larger than Dimorphos inside the gate wins without history, loses to the continuing Dimorphos."""
+    did = _blob(1, 256.0, 256.0, 300, 20)
+    dim = _blob(2, 280.0, 250.0, 12, 4)
+    star = _blob(3, 240.0, 275.0, 20, 5)
+    assert identify_bodies([did, dim, star], CFG) == (did, star)
+    prev = _detections(_blob(1, 255.0, 255.0, 290, 20), _blob(2, 278.5, 249.0, 11, 4))
+    assert identify_bodies([did, dim, star], CFG, prev) == (did, dim)
+
+
+def test_dimorphos_alone_when_didymos_leaves_the_field() -> None:
+    """When only the blob continuing Dimorphos remains, it is reported as Dimorphos, not as Didymos."""
+    prev = _detections(_blob(1, 20.0, 256.0, 9000, 140), _blob(2, 250.0, 260.0, 700, 30))
+    now = _blob(1, 252.0, 259.0, 720, 30)
+    assert identify_bodies([now], CFG, prev) == (None, now)
+    assert identify_bodies([now], CFG) == (now, None)
+
+
+def test_stars_far_from_didymos_and_dim_or_elongated_blobs_are_not_dimorphos() -> None:
+    """Dimorphos must be within the separation gate, bright enough, compact and smaller than Didymos."""
+    did = _blob(1, 256.0, 256.0, 300, 20)
+    far = _blob(2, 256.0, 320.0, 12, 4)  # 64 px away, gate is 2 x 20 + 2 px
+    dim_faint = _blob(3, 270.0, 256.0, 12, 4, peak=40)
+    ray = Blob(4, 30, (250.0, 270.0), (240, 268, 30, 3), 150.0, 200, 12.0)
+    assert identify_bodies([did, far, dim_faint, ray], CFG) == (did, None)
+
+
+def test_default_config_is_reachable_from_obsw_config() -> None:
+    """ObswConfig carries the imaging defaults (paper: 512 px binned, 2.9 deg FOV, 12 bit)."""
+    cfg = ObswConfig().imaging
+    assert (cfg.binned_size_px, cfg.fov_deg, cfg.bit_depth) == (512, 2.9, 12)
