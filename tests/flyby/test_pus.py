@@ -1,0 +1,540 @@
+"""Mission PUS packets: round trips, independent parsing by spacepackets, layout, and typed decoding errors."""
+
+from __future__ import annotations
+
+import binascii
+import math
+import struct
+
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+from spacepackets.ecss.req_id import RequestId as SpRequestId
+from spacepackets.ecss.tc import PusTc
+from spacepackets.ecss.tm import PusTm
+
+from flyby.cuc import cuc_decode, cuc_encode
+from flyby.pus import (
+    HK_SIZE,
+    HK_WHEEL_SLOTS,
+    BadArgument,
+    CommandRejectedEvent,
+    CrcMismatch,
+    DeleteActivities,
+    DetailReportRequest,
+    DisableSchedule,
+    EnableSchedule,
+    FailureCode,
+    FaultEvent,
+    Housekeeping,
+    InsertActivities,
+    LengthMismatch,
+    MalformedPacket,
+    Mode,
+    ModeChangedEvent,
+    PacketError,
+    Ping,
+    PingReply,
+    RequestId,
+    RequestTimeReports,
+    ResetSchedule,
+    ScheduledActivity,
+    ScheduleDetailReport,
+    ScheduleSummaryEntry,
+    ScheduleSummaryReport,
+    SetCameraCadence,
+    SetMode,
+    SetTimeReportRate,
+    Severity,
+    Stage,
+    StartImaging,
+    StopImaging,
+    SummaryReportRequest,
+    TargetAcquiredEvent,
+    TargetLostEvent,
+    TimeReport,
+    TimeShiftActivities,
+    TruncatedPacket,
+    UnknownService,
+    UploadNominalTrajectory,
+    Verification,
+    WheelSaturationEvent,
+    WrongApid,
+    decode_tc,
+    decode_tm,
+    encode_tc,
+    encode_tm,
+    request_id_of,
+    split_packets,
+)
+
+# ------------------------------------------------------------------------------------------------ strategies
+
+apids = st.integers(0, 0x7FF)
+seqs = st.integers(0, 0x3FFF)
+counters = st.integers(0, 0xFFFF)
+f32 = st.floats(width=32, allow_nan=False)
+f64 = st.floats(allow_nan=False, allow_infinity=False)
+positive = st.floats(min_value=1e-6, max_value=1e6)
+texts = st.text(alphabet=st.characters(codec="utf-8"), max_size=60)
+modes = st.sampled_from(Mode)
+severities = st.sampled_from(Severity)
+# OBTs on the 2^-16 s CUC grid, which the packets carry exactly.
+grid_obt = st.builds(lambda c, f: c + f / 65536, st.integers(0, 2**32 - 1), st.integers(0, 0xFFFF))
+request_ids = st.builds(RequestId, apid=apids, seq_count=seqs)
+id_lists = st.lists(request_ids, min_size=1, max_size=5).map(tuple)
+
+
+@st.composite
+def orthonormal_pairs(draw: st.DrawFn) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Two perpendicular unit vectors (Gram-Schmidt on well-conditioned draws)."""
+    comp = st.floats(-1.0, 1.0)
+    a = [draw(comp) for _ in range(3)]
+    b = [draw(comp) for _ in range(3)]
+    na = math.sqrt(sum(x * x for x in a))
+    assume(na > 0.1)
+    a = [x / na for x in a]
+    d = sum(x * y for x, y in zip(a, b, strict=True))
+    b = [y - d * x for x, y in zip(a, b, strict=True)]
+    nb = math.sqrt(sum(x * x for x in b))
+    assume(nb > 0.1)
+    b = [x / nb for x in b]
+    # One more projection so the dot product is at rounding level.
+    d = sum(x * y for x, y in zip(a, b, strict=True))
+    b = [y - d * x for x, y in zip(a, b, strict=True)]
+    nb = math.sqrt(sum(x * x for x in b))
+    return tuple(a), tuple(x / nb for x in b)
+
+
+simple_tcs = st.one_of(
+    st.just(Ping()),
+    st.builds(SetMode, mode=modes),
+    st.builds(StopImaging),
+    st.builds(RequestTimeReports, count=st.integers(1, 0xFFFF)),
+)
+tc_packets = st.builds(lambda c, a, s: encode_tc(c, a, s), simple_tcs, apids, seqs)
+activities = st.builds(
+    ScheduledActivity,
+    release_obt_s=grid_obt,
+    tc_packet=tc_packets,
+    ca_offset_s=st.none() | f64,
+)
+
+
+@st.composite
+def trajectories(draw: st.DrawFn) -> UploadNominalTrajectory:
+    """A valid nominal trajectory upload."""
+    a, c = draw(orthonormal_pairs())
+    return UploadNominalTrajectory(
+        ca_obt_s=draw(st.floats(0, 1e9)),
+        ca_distance_km=draw(positive),
+        speed_km_s=draw(positive),
+        approach_direction=a,
+        ca_direction=c,
+        sigma_ca_time_s=draw(st.floats(0, 1e4)),
+        sigma_ca_distance_km=draw(st.floats(0, 1e3)),
+    )
+
+
+@st.composite
+def cadences(draw: st.DrawFn) -> SetCameraCadence:
+    """A valid cadence: exposure not longer than the period."""
+    period = draw(positive)
+    return SetCameraCadence(period_s=period, exposure_s=draw(st.floats(1e-7, 1.0)) * period)
+
+
+commands = st.one_of(
+    simple_tcs,
+    st.builds(SetTimeReportRate, rate_exponent=st.integers(0, 255)),
+    st.builds(EnableSchedule),
+    st.builds(DisableSchedule),
+    st.builds(ResetSchedule),
+    st.builds(InsertActivities, activities=st.lists(activities, min_size=1, max_size=3).map(tuple)),
+    st.builds(DeleteActivities, request_ids=id_lists),
+    st.builds(TimeShiftActivities, delta_s=f64, request_ids=st.none() | id_lists),
+    st.builds(DetailReportRequest, request_ids=st.none() | id_lists),
+    st.builds(SummaryReportRequest, request_ids=st.none() | id_lists),
+    trajectories(),
+    cadences(),
+    st.builds(StartImaging, period_s=st.none() | positive),
+)
+
+
+@st.composite
+def housekeeping(draw: st.DrawFn) -> Housekeeping:
+    """Any housekeeping report whose floats are float32-representable."""
+    n = draw(st.integers(1, HK_WHEEL_SLOTS))
+    has_traj = draw(st.booleans())
+    return Housekeeping(
+        mode=draw(modes),
+        q=tuple(draw(f32) for _ in range(4)),
+        rate_rad_s=tuple(draw(f32) for _ in range(3)),
+        wheel_speed_rad_s=tuple(draw(f32) for _ in range(n)),
+        wheel_momentum_nms=tuple(draw(f32) for _ in range(n)),
+        pointing_error_rad=draw(st.none() | f32),
+        best_ca_obt_s=draw(f64) if has_traj else None,
+        best_ca_distance_km=draw(f32) if has_traj else None,
+        best_mse_rad2=draw(st.none() | f32),
+    )
+
+
+events = st.one_of(
+    st.builds(ModeChangedEvent, severity=severities, from_mode=modes, to_mode=modes, cause=texts),
+    st.builds(
+        TargetAcquiredEvent,
+        severity=severities,
+        centroid_x_px=f32,
+        centroid_y_px=f32,
+        area_px=st.integers(0, 2**32 - 1),
+    ),
+    st.builds(TargetLostEvent, severity=severities, unseen_s=st.floats(0, 1e6, width=32)),
+    st.builds(WheelSaturationEvent, severity=severities, wheel=st.integers(0, 255), momentum_nms=f32),
+    st.builds(FaultEvent, severity=severities, fault_code=counters, reason=texts),
+    st.builds(CommandRejectedEvent, severity=severities, request_id=request_ids, failure_code=counters),
+)
+
+
+@st.composite
+def verifications(draw: st.DrawFn) -> Verification:
+    """A success or failure report at any stage."""
+    stage, rid = draw(st.sampled_from(Stage)), draw(request_ids)
+    if draw(st.booleans()):
+        return Verification(stage=stage, request_id=rid)
+    return Verification(stage=stage, request_id=rid, failure_code=draw(counters), reason=draw(texts))
+
+
+reports = st.one_of(
+    st.just(PingReply()),
+    verifications(),
+    housekeeping(),
+    events,
+    st.builds(TimeReport, obt_s=grid_obt, rate_exponent=st.integers(0, 255)),
+    st.builds(ScheduleDetailReport, activities=st.lists(activities, max_size=3).map(tuple)),
+    st.builds(
+        ScheduleSummaryReport,
+        entries=st.lists(st.builds(ScheduleSummaryEntry, release_obt_s=grid_obt, request_id=request_ids), max_size=4)
+        .map(tuple),
+    ),
+)
+
+_SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+# ------------------------------------------------------------------------------------------------ round trips
+
+
+@_SETTINGS
+@given(commands, apids, seqs)
+def test_every_command_round_trips(cmd: object, apid: int, seq: int) -> None:
+    """decode_tc(encode_tc(cmd)) gives back the command and the header it was sent with."""
+    raw = encode_tc(cmd, apid, seq)  # type: ignore[arg-type]
+    header, back = decode_tc(raw)
+    assert back == cmd
+    assert (header.apid, header.seq_count) == (apid, seq)
+    assert (header.service, header.subservice) == (cmd.SERVICE, cmd.subservice())  # type: ignore[attr-defined]
+    assert header.request_id == request_id_of(raw) == RequestId(apid=apid, seq_count=seq)
+
+
+@_SETTINGS
+@given(reports, apids, seqs, grid_obt, counters)
+def test_every_report_round_trips(report: object, apid: int, seq: int, obt_s: float, counter: int) -> None:
+    """decode_tm(encode_tm(report)) gives back the report, APID, sequence count, OBT and message counter."""
+    raw = encode_tm(report, apid, seq, obt_s, counter)  # type: ignore[arg-type]
+    header, back = decode_tm(raw)
+    assert back == report
+    assert (header.apid, header.seq_count, header.obt_s, header.msg_counter) == (apid, seq, obt_s, counter)
+    assert (header.service, header.subservice) == (report.SERVICE, report.subservice())  # type: ignore[attr-defined]
+
+
+@_SETTINGS
+@given(commands, apids, seqs)
+def test_spacepackets_parses_our_telecommands(cmd: object, apid: int, seq: int) -> None:
+    """PusTc.unpack (with its CRC check) reads what we build; stdlib crc_hqx agrees the CRC is intact."""
+    raw = encode_tc(cmd, apid, seq)  # type: ignore[arg-type]
+    tc = PusTc.unpack(raw)
+    assert (tc.apid, tc.seq_count, tc.service) == (apid, seq, cmd.SERVICE)  # type: ignore[attr-defined]
+    assert tc.message_subtype == cmd.subservice()  # type: ignore[attr-defined]
+    assert tc.packet_len == len(raw)
+    assert binascii.crc_hqx(raw[:-2], 0xFFFF) == struct.unpack(">H", raw[-2:])[0]
+    assert SpRequestId.from_pus_tc(tc).pack() == RequestId(apid=apid, seq_count=seq).packed()
+
+
+@_SETTINGS
+@given(reports, apids, seqs, grid_obt, counters)
+def test_spacepackets_parses_our_telemetry(report: object, apid: int, seq: int, obt_s: float, counter: int) -> None:
+    """PusTm.unpack with a 7-octet time stamp reads what we build; the stamp is our CUC of the OBT."""
+    raw = encode_tm(report, apid, seq, obt_s, counter)  # type: ignore[arg-type]
+    tm = PusTm.unpack(raw, timestamp_len=7)
+    assert (tm.apid, tm.seq_count, tm.service, tm.message_subtype) == (
+        apid,
+        seq,
+        report.SERVICE,  # type: ignore[attr-defined]
+        report.subservice(),  # type: ignore[attr-defined]
+    )
+    assert tm.pus_tm_sec_header.message_counter == counter
+    assert bytes(tm.timestamp) == cuc_encode(obt_s) and cuc_decode(tm.timestamp) == obt_s
+    assert binascii.crc_hqx(raw[:-2], 0xFFFF) == struct.unpack(">H", raw[-2:])[0]
+
+
+def test_ping_matches_the_ecss_reference_bytes() -> None:
+    """A ping to APID 1, count 22 is byte-for-byte the PUS-C example of the spacepackets documentation."""
+    assert encode_tc(Ping(), 1, 22).hex(",") == "18,01,c0,16,00,06,2f,11,01,00,00,ab,62"
+
+
+def _hk_with_q0(x: float) -> Housekeeping:
+    return Housekeeping(
+        mode=Mode.SAFE, q=(x, 0, 0, 1), rate_rad_s=(0, 0, 0), wheel_speed_rad_s=(x,), wheel_momentum_nms=(0,)
+    )
+
+
+@given(st.floats(allow_nan=False, allow_infinity=False, min_value=-1e30, max_value=1e30))
+def test_float32_fields_round_to_nearest_float32(x: float) -> None:
+    """An arbitrary float64 in a float32 field comes back as the nearest float32 (relative error <= 2^-24)."""
+    hk = _hk_with_q0(x)
+    _, back = decode_tm(encode_tm(hk, 1, 0, 0.0, 0))
+    assert back.q[0] == struct.unpack(">f", struct.pack(">f", x))[0]  # type: ignore[union-attr]
+    assert abs(back.q[0] - x) <= abs(x) * 2.0**-24 + 1.5e-45  # type: ignore[union-attr]
+
+
+# -------------------------------------------------------------------------------------------------- layouts
+
+
+def test_housekeeping_layout_is_as_documented() -> None:
+    """HK source data is 85 octets at the documented offsets; the whole packet is 6 + 14 + 85 + 2 octets."""
+    hk = Housekeeping(
+        mode=Mode.AUTONOMOUS_TRACKING,
+        q=(0.5, -0.5, 0.25, 0.625),
+        rate_rad_s=(1e-3, -2e-3, 3e-3),
+        wheel_speed_rad_s=(10.0, 20.0, 30.0),
+        wheel_momentum_nms=(0.001, 0.002, 0.003),
+        pointing_error_rad=1.5e-4,
+        best_ca_obt_s=1234567.890625,
+        best_ca_distance_km=55.5,
+        best_mse_rad2=None,
+    )
+    assert HK_SIZE == 85
+    raw = encode_tm(hk, 0xC1, 1, 100.0, 0)
+    assert len(raw) == 6 + 7 + 7 + 85 + 2 == 107
+    d = raw[20:-2]
+    assert len(d) == 85
+    assert struct.unpack(">H", d[0:2]) == (1,)
+    assert (d[2], d[3], d[4]) == (4, 0b011, 3)
+    assert struct.unpack(">4f", d[5:21]) == (0.5, -0.5, 0.25, 0.625)
+    assert struct.unpack(">3f", d[21:33]) == tuple(struct.unpack(">f", struct.pack(">f", v))[0] for v in hk.rate_rad_s)
+    assert struct.unpack(">4f", d[33:49]) == (10.0, 20.0, 30.0, 0.0)
+    assert struct.unpack(">f", d[65:69])[0] == pytest.approx(1.5e-4, rel=1e-7)
+    assert struct.unpack(">d", d[69:77]) == (1234567.890625,)
+    assert struct.unpack(">f", d[77:81]) == (55.5,)
+    assert math.isnan(struct.unpack(">f", d[81:85])[0])
+
+
+def test_request_id_is_the_first_four_octets_of_the_tc() -> None:
+    """A verification report quotes the TC's first 4 octets, as spacepackets' RequestId does."""
+    raw = encode_tc(SetMode(mode=Mode.STANDBY), 0x0C1, 1234)
+    rid = request_id_of(raw)
+    assert rid.packed() == raw[:4] == SpRequestId.from_pus_tc(PusTc.unpack(raw)).pack()
+
+
+def test_mode_accepts_names() -> None:
+    """Modes can be given by name, as the timeline spells them."""
+    assert SetMode(mode="NOMINAL_TRACKING").mode is Mode.NOMINAL_TRACKING  # type: ignore[arg-type]
+
+
+# ----------------------------------------------------------------------------------------------------- errors
+
+
+def _valid_tc() -> bytes:
+    return encode_tc(SetCameraCadence(period_s=1.0, exposure_s=0.01), 0x0C1, 77)
+
+
+@_SETTINGS
+@given(commands, st.data())
+def test_any_single_bit_flip_is_rejected(cmd: object, data: st.DataObject) -> None:
+    """CRC-16 plus header checks reject every single-bit corruption with a PacketError."""
+    raw = bytearray(encode_tc(cmd, 0x0C1, 5))  # type: ignore[arg-type]
+    bit = data.draw(st.integers(0, 8 * len(raw) - 1))
+    raw[bit // 8] ^= 0x80 >> (bit % 8)
+    with pytest.raises(PacketError):
+        decode_tc(bytes(raw))
+
+
+@given(st.integers(6, 200), st.integers(0, 7))
+def test_payload_corruption_is_a_crc_error_with_request_id(pos: int, bit: int) -> None:
+    """A flipped bit after the primary header raises CrcMismatch carrying the TC's request id."""
+    raw = bytearray(_valid_tc())
+    raw[pos % (len(raw) - 6) + 6] ^= 1 << bit
+    with pytest.raises(CrcMismatch) as exc:
+        decode_tc(bytes(raw))
+    assert exc.value.failure_code == FailureCode.BAD_CRC
+    assert exc.value.request_id == RequestId(apid=0x0C1, seq_count=77)
+
+
+@given(st.data())
+def test_every_truncation_is_reported(data: st.DataObject) -> None:
+    """Any strict prefix of a valid TC or TM raises TruncatedPacket."""
+    tc = _valid_tc()
+    tm = encode_tm(TimeReport(obt_s=5.0), 0x0C1, 3, 5.0, 1)
+    n_tc = data.draw(st.integers(0, len(tc) - 1))
+    n_tm = data.draw(st.integers(0, len(tm) - 1))
+    with pytest.raises(TruncatedPacket) as exc:
+        decode_tc(tc[:n_tc])
+    assert exc.value.failure_code == FailureCode.TRUNCATED
+    assert (exc.value.request_id is None) == (n_tc < 4)
+    with pytest.raises(TruncatedPacket):
+        decode_tm(tm[:n_tm])
+
+
+def test_trailing_octets_are_a_length_error() -> None:
+    """A packet followed by extra octets raises LengthMismatch (bad length)."""
+    with pytest.raises(LengthMismatch) as exc:
+        decode_tc(_valid_tc() + b"\x00")
+    assert exc.value.failure_code == FailureCode.BAD_LENGTH
+
+
+@pytest.mark.parametrize(
+    ("service", "sub", "code"),
+    [
+        (42, 1, FailureCode.UNKNOWN_SERVICE),
+        (17, 9, FailureCode.UNKNOWN_SUBSERVICE),
+        (200, 99, FailureCode.UNKNOWN_SUBSERVICE),
+    ],
+)
+def test_unknown_service_is_typed(service: int, sub: int, code: FailureCode) -> None:
+    """A TC built by spacepackets for a service/subtype we do not define raises UnknownService with its code."""
+    raw = bytes(PusTc(service=service, message_subtype=sub, apid=0x0C1, seq_count=9).pack())
+    with pytest.raises(UnknownService) as exc:
+        decode_tc(raw)
+    assert exc.value.failure_code == code
+    assert (exc.value.service, exc.value.subservice) == (service, sub)
+    assert exc.value.request_id == RequestId(apid=0x0C1, seq_count=9)
+
+
+def _tc(service: int, sub: int, app_data: bytes) -> bytes:
+    return bytes(PusTc(service=service, message_subtype=sub, apid=1, seq_count=2, app_data=app_data).pack())
+
+
+@pytest.mark.parametrize(
+    ("raw", "field"),
+    [
+        (_tc(200, 1, b"\x09"), "SetMode.mode"),
+        (_tc(200, 1, b""), "SetMode.mode"),
+        (_tc(200, 1, b"\x01\x00"), "SetMode"),
+        (_tc(200, 3, struct.pack(">dd", 1.0, 2.0)), "SetCameraCadence"),
+        (_tc(200, 3, struct.pack(">dd", -1.0, 0.1)), "SetCameraCadence.period_s"),
+        (_tc(200, 2, struct.pack(">11d", 1, 55, 7, 1, 0, 0, 1, 0, 0, 1, 1)), "UploadNominalTrajectory"),
+        (_tc(200, 2, struct.pack(">11d", 1, 55, 7, 2, 0, 0, 0, 1, 0, 1, 1)), "UploadNominalTrajectory"),
+        (_tc(200, 4, struct.pack(">Bd", 2, 1.0)), "StartImaging.period_s.present"),
+        (_tc(9, 1, b""), "SetTimeReportRate.rate_exponent"),
+        (_tc(11, 5, b"\x00\x02" + RequestId(apid=1, seq_count=1).packed()), "DeleteActivities.request_ids[1]"),
+        (_tc(11, 5, b"\x00\x01\x00\x01\xc0\x01"), "DeleteActivities.request_ids[0]"),
+        (_tc(11, 4, b"\x00\x01\x02" + bytes(7)), "InsertActivities.activities[0].tag_kind"),
+        (_tc(11, 4, b"\x00\x01\x00" + cuc_encode(1.0) + bytes(3)), "InsertActivities.activities[0].tc_packet"),
+    ],
+)
+def test_bad_arguments_name_the_field(raw: bytes, field: str) -> None:
+    """Well-formed packets with bad application data raise BadArgument naming the field, with the request id."""
+    with pytest.raises(BadArgument) as exc:
+        decode_tc(raw)
+    assert exc.value.field.startswith(field)
+    assert exc.value.failure_code == FailureCode.BAD_ARGUMENT
+    assert exc.value.request_id == RequestId(apid=1, seq_count=2)
+
+
+def test_scheduled_tm_packet_is_rejected() -> None:
+    """An activity wrapping a telemetry packet instead of a TC is a bad argument."""
+    tm = encode_tm(PingReply(), 1, 0, 0.0, 0)
+    raw = _tc(11, 4, b"\x00\x01\x00" + cuc_encode(1.0) + tm)
+    with pytest.raises(BadArgument, match="telemetry"):
+        decode_tc(raw)
+
+
+def test_unknown_event_id_is_a_bad_argument() -> None:
+    """An event report with an undefined event id raises BadArgument on event_id."""
+    raw = bytes(PusTm(service=5, message_subtype=1, timestamp=cuc_encode(1.0), source_data=b"\x00\x63").pack())
+    with pytest.raises(BadArgument, match="event_id"):
+        decode_tm(raw)
+
+
+def test_tm_with_foreign_time_stamp_is_malformed() -> None:
+    """A TM stamped with CDS (not our CUC P-field) raises MalformedPacket naming the time stamp."""
+    raw = bytes(PusTm(service=17, message_subtype=2, timestamp=bytes([0x40]) + bytes(6)).pack())
+    with pytest.raises(MalformedPacket, match="time stamp"):
+        decode_tm(raw)
+
+
+def test_telemetry_is_not_a_telecommand() -> None:
+    """decode_tc refuses a TM packet and decode_tm a TC packet."""
+    with pytest.raises(MalformedPacket, match="TM"):
+        decode_tc(encode_tm(PingReply(), 1, 0, 0.0, 0))
+    with pytest.raises(MalformedPacket, match="TC"):
+        decode_tm(_valid_tc())
+
+
+def test_wrong_apid_is_rejected_when_asked() -> None:
+    """decode_tc with expected_apid refuses a TC addressed elsewhere."""
+    with pytest.raises(WrongApid) as exc:
+        decode_tc(_valid_tc(), expected_apid=0x0C2)
+    assert exc.value.failure_code == FailureCode.WRONG_APID
+    assert decode_tc(_valid_tc(), expected_apid=0x0C1)[0].apid == 0x0C1
+
+
+def test_failure_codes_are_distinct() -> None:
+    """Each kind of decoding error reports with its own service 1 code."""
+    codes = [e.failure_code for e in (TruncatedPacket(""), LengthMismatch(""), CrcMismatch(""), MalformedPacket(""))]
+    codes += [UnknownService(1, 1, False).failure_code, UnknownService(1, 1, True).failure_code]
+    codes += [BadArgument("f", "x").failure_code, WrongApid("").failure_code]
+    assert len(set(codes)) == len(codes)
+
+
+def test_failure_report_answers_a_bad_tc() -> None:
+    """Verification.failure_for turns a decoding error into an acceptance-failure report that round-trips."""
+    with pytest.raises(PacketError) as exc:
+        decode_tc(_tc(200, 1, b"\x09"))
+    report = Verification.failure_for(exc.value)
+    assert report is not None and not report.success and report.subservice() == 2
+    assert report.failure_code == FailureCode.BAD_ARGUMENT and "SetMode.mode" in report.reason
+    assert decode_tm(encode_tm(report, 0x0C1, 0, 1.0, 0))[1] == report
+    assert Verification.failure_for(TruncatedPacket("x")) is None
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"apid": 2048, "seq": 0}, "apid"),
+        ({"apid": 0, "seq": 16384}, "seq"),
+    ],
+)
+def test_encode_rejects_header_fields_out_of_range(kwargs: dict[str, int], field: str) -> None:
+    """APID and sequence count outside the primary header's bits raise BadArgument naming them."""
+    with pytest.raises(BadArgument) as exc:
+        encode_tc(Ping(), **kwargs)
+    assert exc.value.field == field
+
+
+def test_values_that_do_not_fit_are_refused_at_construction() -> None:
+    """Too-long texts and floats beyond float32 are refused when the value is built."""
+    with pytest.raises(ValueError, match="cause"):
+        ModeChangedEvent(from_mode=Mode.SAFE, to_mode=Mode.STANDBY, cause="x" * 256)
+    with pytest.raises(ValueError, match="q"):
+        _hk_with_q0(1e39)
+    with pytest.raises(ValueError, match="reason"):
+        Verification(stage=Stage.ACCEPTANCE, request_id=RequestId(apid=1, seq_count=1), reason="no failure")
+
+
+# ------------------------------------------------------------------------------------------------- streams
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(reports, apids, seqs), min_size=0, max_size=8))
+def test_split_packets_recovers_concatenated_packets(items: list[tuple[object, int, int]]) -> None:
+    """Splitting a concatenation of packets gives back each packet, in order."""
+    packets = [encode_tm(r, a, s, 1.0, 0) for r, a, s in items]  # type: ignore[arg-type]
+    assert split_packets(b"".join(packets)) == packets
+
+
+def test_split_packets_reports_a_cut_tail() -> None:
+    """A stream that ends inside a packet raises TruncatedPacket naming the offset."""
+    p = encode_tm(PingReply(), 1, 0, 0.0, 0)
+    with pytest.raises(TruncatedPacket, match=f"octet {len(p)}"):
+        split_packets(p + p[:-1])
+    with pytest.raises(TruncatedPacket, match="primary header"):
+        split_packets(p + p[:3])
