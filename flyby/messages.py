@@ -94,6 +94,7 @@ class GroundStep(Message):
     step: int = Field(ge=0)
     utc_s: float = Field(description="true time, s after the scenario epoch")
     downlink: tuple[bytes, ...] = ()
+    downlink_utc_s: tuple[float, ...] = Field(default=(), description="arrival time of each downlink packet, s")
     truth: tuple[TruthRecord, ...] = ()
 
 

@@ -23,6 +23,7 @@ svc   subtype   content
 17    TC 1/TM 2 ``Ping`` / ``PingReply`` (are-you-alive)
 200   TC 1..6   mission commands: set mode, upload nominal trajectory, set camera cadence, start imaging,
                 stop imaging, request time reports
+200   TM 130    ``NavigationReport``: what the imaging chain made of one frame (fixed 49 octets)
 ====  ========  ======================================================================================
 
 The filter-based subtypes of service 11 (6, 8, 11, 14) are not implemented: ground always names activities by
@@ -560,8 +561,8 @@ class Housekeeping(_Payload):
 # Service 5 ----------------------------------------------------------------------------------------------
 
 
-class _Event(_Payload):
-    """An event report; the subtype is its severity, the first u16 of its data its event id."""
+class EventReport(_Payload):
+    """Base of the event reports; the subtype is its severity, the first u16 of its data its event id."""
 
     SERVICE: ClassVar[int] = 5
     EVENT_ID: ClassVar[EventId]
@@ -580,7 +581,10 @@ class _Event(_Payload):
         return b""
 
 
-class ModeChangedEvent(_Event):
+_Event = EventReport  # earlier name, kept for code written against it
+
+
+class ModeChangedEvent(EventReport):
     """The mode manager made a transition: from, to, and why."""
 
     EVENT_ID: ClassVar[EventId] = EventId.MODE_CHANGED
@@ -600,7 +604,7 @@ class ModeChangedEvent(_Event):
         return _built(cls, cls.__name__, severity=subservice, from_mode=a, to_mode=b, cause=r.text("cause"))
 
 
-class TargetAcquiredEvent(_Event):
+class TargetAcquiredEvent(EventReport):
     """The imaging chain found the target: centroid and area in the processed (binned) image."""
 
     EVENT_ID: ClassVar[EventId] = EventId.TARGET_ACQUIRED
@@ -620,7 +624,7 @@ class TargetAcquiredEvent(_Event):
         return _built(cls, cls.__name__, severity=subservice, centroid_x_px=x, centroid_y_px=y, area_px=a)
 
 
-class TargetLostEvent(_Event):
+class TargetLostEvent(EventReport):
     """The target has not been seen for longer than the timeout."""
 
     EVENT_ID: ClassVar[EventId] = EventId.TARGET_LOST
@@ -637,7 +641,7 @@ class TargetLostEvent(_Event):
         return _built(cls, cls.__name__, severity=subservice, unseen_s=r.one("f", "unseen_s"))
 
 
-class WheelSaturationEvent(_Event):
+class WheelSaturationEvent(EventReport):
     """A reaction wheel reached its momentum limit."""
 
     EVENT_ID: ClassVar[EventId] = EventId.WHEEL_SATURATION
@@ -656,7 +660,7 @@ class WheelSaturationEvent(_Event):
         return _built(cls, cls.__name__, severity=subservice, wheel=w, momentum_nms=h)
 
 
-class FaultEvent(_Event):
+class FaultEvent(EventReport):
     """An on-board fault was detected."""
 
     EVENT_ID: ClassVar[EventId] = EventId.FAULT
@@ -675,7 +679,7 @@ class FaultEvent(_Event):
         return _built(cls, cls.__name__, severity=subservice, fault_code=code, reason=r.text("reason"))
 
 
-class CommandRejectedEvent(_Event):
+class CommandRejectedEvent(EventReport):
     """A TC was rejected (its service 1 failure report carries the reason text)."""
 
     EVENT_ID: ClassVar[EventId] = EventId.COMMAND_REJECTED
@@ -1103,6 +1107,54 @@ class RequestTimeReports(_Payload):
         return _built(cls, cls.__name__, count=r.one("H", "count"))
 
 
+_NAV = struct.Struct(">IBffffIddd")
+
+
+class NavigationReport(_Payload):
+    """TM[200,130] what the imaging chain made of one frame: centroids (binned px), area, measured line of sight.
+
+    Layout: u32 frame id, u8 validity flags (bit0 Dimorphos centroid, bit1 Didymos centroid, bit2 line of sight),
+    f32 Dimorphos col, row, f32 Didymos col, row, u32 Dimorphos area px, f64 line of sight x y z (inertial).
+    """
+
+    SERVICE: ClassVar[int] = MISSION_SERVICE
+    SUBSERVICE: ClassVar[int] = 130
+    frame_id: U32
+    dimorphos_col_row: tuple[F32, F32] | None = Field(None, description="Dimorphos centroid, binned px")
+    didymos_col_row: tuple[F32, F32] | None = Field(None, description="Didymos centroid, binned px")
+    dimorphos_area_px: U32 = Field(0, description="Dimorphos area, binned px")
+    los_inertial: UnitVector | None = Field(None, description="measured line of sight to Dimorphos, inertial")
+
+    def app_data(self) -> bytes:
+        """The fixed 49-octet layout."""
+        flags = (
+            (self.dimorphos_col_row is not None)
+            | (self.didymos_col_row is not None) << 1
+            | (self.los_inertial is not None) << 2
+        )
+        dm = self.dimorphos_col_row or (0.0, 0.0)
+        dd = self.didymos_col_row or (0.0, 0.0)
+        los = self.los_inertial or (0.0, 0.0, 0.0)
+        return _NAV.pack(self.frame_id, flags, *dm, *dd, self.dimorphos_area_px, *los)
+
+    @classmethod
+    def from_app_data(cls, subservice: int, r: _Reader) -> Self:
+        """Parse the fixed layout; absent values come back as None."""
+        v = r.take(_NAV.format[1:], "navigation")
+        flags = v[1]
+        if flags & ~0b111:
+            raise BadArgument(f"{cls.__name__}.flags", f"unknown validity bits 0x{flags:02X}")
+        return _built(
+            cls,
+            cls.__name__,
+            frame_id=v[0],
+            dimorphos_col_row=v[2:4] if flags & 1 else None,
+            didymos_col_row=v[4:6] if flags & 2 else None,
+            dimorphos_area_px=v[6],
+            los_inertial=v[7:10] if flags & 4 else None,
+        )
+
+
 # ---------------------------------------------------------------------------------------------- registries
 
 TcCommand: TypeAlias = (
@@ -1127,7 +1179,14 @@ Event: TypeAlias = (
     ModeChangedEvent | TargetAcquiredEvent | TargetLostEvent | WheelSaturationEvent | FaultEvent | CommandRejectedEvent
 )
 TmReport: TypeAlias = (
-    PingReply | Verification | Housekeeping | Event | TimeReport | ScheduleDetailReport | ScheduleSummaryReport
+    PingReply
+    | Verification
+    | Housekeeping
+    | Event
+    | TimeReport
+    | ScheduleDetailReport
+    | ScheduleSummaryReport
+    | NavigationReport
 )
 
 _TC_TYPES: dict[tuple[int, int], type[_Payload]] = {
@@ -1158,8 +1217,9 @@ _TM_TYPES: dict[tuple[int, int], type[_Payload]] = {
     (9, 2): TimeReport,
     (11, 10): ScheduleDetailReport,
     (11, 13): ScheduleSummaryReport,
+    (MISSION_SERVICE, 130): NavigationReport,
 }
-_EVENT_TYPES: dict[int, type[_Event]] = {
+_EVENT_TYPES: dict[int, type[EventReport]] = {
     int(c.EVENT_ID): c
     for c in (
         ModeChangedEvent,
@@ -1237,7 +1297,7 @@ def encode_tm(
     report: TmReport, apid: int, seq: int, obt_s: float, msg_counter: int, *, destination_id: int = 0
 ) -> bytes:
     """Build the TM packet of ``report`` from ``apid``, stamped ``obt_s`` (OBT, s) as CUC."""
-    if not isinstance(report, _Event) and type(report) not in _TM_TYPES.values():
+    if not isinstance(report, EventReport) and type(report) not in _TM_TYPES.values():
         raise TypeError(f"{type(report).__name__} is not a telemetry report of this mission")
     _check_ids(apid, seq)
     if not 0 <= msg_counter <= 0xFFFF:

@@ -28,3 +28,14 @@ class GroundConfig(Frozen):
         "(default: at the start of the run)",
     )
     link: LinkConfig = LinkConfig()
+    a_priori_obt_offset_s: float = Field(
+        26_499_202.0,
+        description="OBT minus UTC (s from the epoch) that ground assumes before any time report, s "
+        "(default: the oscillator's default, a clock counting from launch)",
+    )
+    time_report_rate_exponent: int = Field(
+        2, ge=0, le=16, description="ask for a service 9 time report every 2^n OBT s (PUS 9,1)"
+    )
+    correlation_window: int = Field(
+        200, ge=3, description="number of most recent time reports the OBT-UTC fit uses"
+    )

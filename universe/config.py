@@ -170,12 +170,107 @@ class CameraConfig(Frozen):
     exposure_s: float = Field(0.01, gt=0, description="exposure time, s")
     frame_period_s: float = Field(1.0, gt=0, description="default time between frames, s")
     boresight_body: Vec3 = Field((0.0, 0.0, 1.0), description="camera boresight in body axes")
+    psf_sigma_px: float = Field(
+        1.0,
+        gt=0.3,
+        le=10.0,
+        description="one-sigma width of the Gaussian point-spread function including pixel integration, px "
+        "(about the diffraction spot of a ~f/5.6 optics on ~5.5 um pixels)",
+    )
+    gain_e_per_dn: float = Field(4.0, gt=0, description="detector gain, electrons per DN (CMOS sensor class)")
+    read_noise_e: float = Field(8.0, ge=0, description="one-sigma read noise, electrons (CMOS sensor class)")
+    dark_offset_dn: float = Field(64.0, ge=0, description="dark (bias) offset added to every pixel, DN (typical ADC pedestal)")
+    dark_current_e_s: float = Field(50.0, ge=0, description="mean dark current, electrons per second per pixel (CMOS at ~20 C)")
+    body_signal_e_s: float = Field(
+        1.5e6,
+        gt=0,
+        description="signal of an asteroid surface seen at normal incidence and emission at zero phase, electrons per "
+        "second per pixel (chosen so the zero-phase surface sits near 90 % of the 12-bit range at the 0.01 s default "
+        "exposure and gain)",
+    )
+    lommel_seeliger_weight: float = Field(
+        0.8,
+        ge=0,
+        le=1,
+        description="weight L of the Lommel-Seeliger term in the lunar-Lambert law "
+        "L*2*mu0/(mu0+mu) + (1-L)*mu0 (McEwen 1991; dark rocky surfaces are Lommel-Seeliger dominated)",
+    )
+    phase_slope_mag_deg: float = Field(
+        0.03,
+        ge=0,
+        description="linear phase darkening of the surface, magnitudes per degree of phase "
+        "(typical S-type asteroid, Belskaya & Shevchenko 2000)",
+    )
+    star_mag0_e_s: float = Field(
+        3.0e6,
+        gt=0,
+        description="total signal of a visual magnitude 0 star, electrons per second "
+        "(about 1e6 photons/s/cm^2 in V through a ~4 cm aperture at 30 % throughput)",
+    )
+    star_limiting_mag: float = Field(
+        9.0,
+        le=14.0,
+        description="faintest visual magnitude rendered, mag (a mag 9 star gives ~8 e- in 0.01 s, far below noise)",
+    )
+    hot_pixel_count: int = Field(50, ge=0, description="number of hot pixels, at fixed seeded positions (count)")
+    hot_pixel_signal_e: float = Field(
+        8000.0, ge=0, description="largest hot-pixel excess per frame, electrons (each a fixed 20-100 % of it)"
+    )
+    hot_pixel_seed: int = Field(7, ge=0, description="seed of the hot-pixel positions and levels (fixed per sensor)")
+
+
+class PlumeConfig(Frozen):
+    """DART ejecta plume: a hollow-free cone of dust from Dimorphos expanding after the impact.
+
+    Particles leave the surface at t = 0 with speeds uniform in [0, speed_m_s] inside the cone, so at time t the
+    cross-section density is ``A(t) / (Omega * speed * t * r^2)`` within ``r < speed * t``; each pixel shows
+    ``1 - exp(-tau)`` of the surface signal, tau being the line-of-sight integral of that density.
+    """
+
+    enabled: bool = Field(True, description="render the plume after the impact")
+    axis_inertial: Vec3 = Field(
+        (0.0, 0.0, 1.0),
+        description="cone axis, inertial frame (normalised); the default is normal to the default flyby plane so "
+        "the fan is seen side-on",
+    )
+    half_angle_deg: float = Field(
+        70.0, gt=0, lt=90, description="cone half-angle, deg (Deshapriya et al. 2023: aperture 140 +- 4 deg)"
+    )
+    speed_m_s: float = Field(
+        50.0, gt=0, description="speed of the ejecta front, m/s (order of the bulk DART ejecta speeds, tens of m/s)"
+    )
+    cross_section_m2: float = Field(
+        1.0e7,
+        ge=0,
+        description="total geometric cross-section of the ejecta before fading, m^2 (the system brightened ~3.5 mag, "
+        "~25x the ~0.5 km^2 of Didymos; Graykowski et al. 2023)",
+    )
+    rise_time_s: float = Field(
+        2.0, gt=0, description="e-folding time of the cross-section rise after the impact, s (A(t) ~ 1 - exp(-t/rise))"
+    )
+    fade_time_s: float = Field(
+        3600.0, gt=0, description="e-folding fading time of the cross-section, s (A(t) ~ exp(-t/fade); hours observed)"
+    )
+    reflectance_factor: float = Field(
+        1.0, ge=0, description="dust brightness relative to the asteroid surface at the same phase (dimensionless)"
+    )
+
+    @field_validator("axis_inertial")
+    @classmethod
+    def _axis_nonzero(cls, v: Vec3) -> Vec3:
+        if sum(c * c for c in v) < 1e-12:
+            raise ValueError("must be a non-zero vector")
+        return v
 
 
 class OscillatorConfig(Frozen):
     """On-board oscillator: maps true time to on-board time (OBT)."""
 
-    initial_offset_s: float = Field(0.0, description="OBT minus true time at the epoch, s")
+    initial_offset_s: float = Field(
+        26_499_202.0,
+        description="OBT at the scenario epoch, s: OBT counts from launch (DART launch 2021-11-24T06:21:02Z to "
+        "the impact epoch is 26,499,202 s), so it is positive and CUC-encodable throughout",
+    )
     drift_ppm: float = Field(0.0, description="frequency error, parts per million")
     drift_rate_ppm_per_day: float = Field(0.0, description="change of the frequency error, ppm per day")
     jitter_s: float = Field(0.0, ge=0, description="one-sigma white jitter of each OBT reading, s")
@@ -228,6 +323,7 @@ class UniverseConfig(Frozen):
     spacecraft: SpacecraftConfig = SpacecraftConfig()
     sensors: SensorsConfig = SensorsConfig()
     camera: CameraConfig = CameraConfig()
+    plume: PlumeConfig = PlumeConfig()
     oscillator: OscillatorConfig = OscillatorConfig()
     faults: list[FaultConfig] = Field(default_factory=list, description="faults to inject")
 

@@ -39,9 +39,13 @@ class Pipe:
 
     def arrived(self, t_s: float) -> list[bytes]:
         """Packets whose last bit has arrived by true time ``t_s``, in the order sent."""
+        return [p for _, p in self.arrived_timed(t_s)]
+
+    def arrived_timed(self, t_s: float) -> list[tuple[float, bytes]]:
+        """Like ``arrived``, with the true time at which each packet's last bit arrived."""
         out = []
         while self.in_flight and self.in_flight[0][0] <= t_s:
-            out.append(self.in_flight.popleft()[1])
+            out.append(self.in_flight.popleft())
         self.delivered += len(out)
         return out
 

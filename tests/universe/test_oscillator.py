@@ -18,6 +18,7 @@ DAY_S = 86400.0
 
 
 def _osc(seed: int = 0, jumps: tuple[tuple[float, float], ...] = (), **kw: float) -> Oscillator:
+    kw.setdefault("initial_offset_s", 0.0)  # closed forms below count from a zero offset
     return Oscillator(OscillatorConfig(**kw), np.random.default_rng(seed), jumps=jumps)
 
 
