@@ -108,15 +108,15 @@ class Sensors:
             raise SensorError(f"state.omega_rad_s must have shape (3,), got {omega.shape}")
         if speeds.shape != (self.n_wheels,):
             raise SensorError(f"state.wheel_speed_rad_s must have shape ({self.n_wheels},), got {speeds.shape}")
-        rng = self._rng
-        self._gyro_bias_rad_s = self._gyro_bias_rad_s + self._rrw_rad_s_sqrt_s * math.sqrt(dt_s) * rng.standard_normal(3)
-        gyro = omega + self._gyro_bias_rad_s + (self._arw_rad_sqrt_s / math.sqrt(dt_s)) * rng.standard_normal(3)
+        noise = self._rng.standard_normal(6 + self.n_wheels)
+        self._gyro_bias_rad_s = self._gyro_bias_rad_s + (self._rrw_rad_s_sqrt_s * math.sqrt(dt_s)) * noise[0:3]
+        gyro = omega + self._gyro_bias_rad_s + (self._arw_rad_sqrt_s / math.sqrt(dt_s)) * noise[3:6]
         if gyro_bias_step_rad_s is not None:
             step = np.asarray(gyro_bias_step_rad_s, dtype=float)
             if step.shape != (3,):
                 raise SensorError(f"gyro_bias_step_rad_s must have shape (3,), got {step.shape}")
             gyro = gyro + step
-        wheels = speeds + self._wheel_sigma_rad_s * rng.standard_normal(self.n_wheels)
+        wheels = speeds + self._wheel_sigma_rad_s * noise[6:]
         return SensorReadings(
             star_tracker_q=self._star_tracker(t_s, state, star_tracker_out),
             gyro_rad_s=gyro,

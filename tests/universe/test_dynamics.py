@@ -73,11 +73,14 @@ def test_gyrostat_nutation_includes_wheel_momentum() -> None:
     dyn = spacecraft("orthogonal", ((i1, 0, 0), (0, i1, 0), (0, 0, i3)), **FRICTIONLESS)
     w0 = np.array([0.02, 0.0, 0.1])
     spin_z = 400.0
-    state = AttitudeState(q=np.array([0, 0, 0, 1.0]), omega_rad_s=w0, wheel_speed_rad_s=np.array([-0.02, 0.0, spin_z]))
+    state = AttitudeState(
+        q=np.array([0, 0, 0, 1.0]), omega_rad_s=w0, wheel_speed_rad_s=np.array([-0.02, 0.0, spin_z])
+    )
     h3 = 1e-4 * (w0[2] + spin_z)
     lam = ((i3 - i1) * w0[2] + h3) / i1
     state = run(dyn, state, np.zeros(3), 40.0)
-    np.testing.assert_allclose(state.omega_rad_s, [0.02 * math.cos(lam * 40), 0.02 * math.sin(lam * 40), 0.1], atol=1e-10)
+    expected = [0.02 * math.cos(lam * 40), 0.02 * math.sin(lam * 40), 0.1]
+    np.testing.assert_allclose(state.omega_rad_s, expected, atol=1e-10)
 
 
 def test_constant_wheel_torque_spin_up_and_saturation() -> None:
@@ -114,7 +117,7 @@ def test_wheel_torque_is_clipped_to_max_torque() -> None:
 
 
 def test_friction_spin_down_matches_closed_form_and_conserves_momentum() -> None:
-    """Viscous + Coulomb friction: Omega(t) = (Omega0 + c/b) exp(-b k t / J) - c/b, body takes J(Omega0 - Omega)/(I+J)."""
+    """Viscous + Coulomb friction: Omega = (W0 + c/b) exp(-b k t / J) - c/b; the body takes J (W0 - Omega)/(I + J)."""
     b, c, jw, ix = 1e-7, 1e-5, 1e-4, 0.152
     dyn = spacecraft("orthogonal", viscous_friction_nms=b, coulomb_friction_nm=c)
     state = AttitudeState(
@@ -134,7 +137,9 @@ def test_friction_spin_down_matches_closed_form_and_conserves_momentum() -> None
 def test_coulomb_friction_stops_a_failed_wheel_without_chatter() -> None:
     """A slow failed wheel is brought to rest by Coulomb friction and stays there (no sign chatter)."""
     dyn = spacecraft("orthogonal")
-    state = AttitudeState(q=np.array([0, 0, 0, 1.0]), omega_rad_s=np.zeros(3), wheel_speed_rad_s=np.array([2.0, 0, 0]))
+    state = AttitudeState(
+        q=np.array([0, 0, 0, 1.0]), omega_rad_s=np.zeros(3), wheel_speed_rad_s=np.array([2.0, 0, 0])
+    )
     speeds = []
     for _ in range(300):
         state = dyn.step(state, np.zeros(3), 0.1, failed_wheels=frozenset({0}))
@@ -199,7 +204,8 @@ def test_pyramid_axes_and_envelope_closed_forms() -> None:
     np.testing.assert_allclose(a[2], math.sin(math.radians(beta)), rtol=1e-12)
     np.testing.assert_allclose(np.degrees(np.arctan2(a[1], a[0])) % 360, [45, 135, 225, 315], atol=1e-9)
     assert max_torque_along(a, np.array([0, 0, 1.0])) == pytest.approx(4 * 0.007 * math.sin(math.radians(beta)))
-    assert max_torque_along(a, np.array([1.0, 0, 0])) == pytest.approx(2 * math.sqrt(2) * 0.007 * math.cos(math.radians(beta)))
+    along_x = 2 * math.sqrt(2) * 0.007 * math.cos(math.radians(beta))
+    assert max_torque_along(a, np.array([1.0, 0, 0])) == pytest.approx(along_x)
     np.testing.assert_array_equal(spacecraft("orthogonal").wheel_axes_body, np.eye(3))
 
 
@@ -218,8 +224,10 @@ def max_torque_along(axes: np.ndarray, d: np.ndarray, t_max: float = 0.007) -> f
 
 
 @settings(max_examples=25, deadline=None)
-@given(direction=st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda v: sum(c * c for c in v) > 0.05),
-       fraction=st.floats(0.05, 0.99))
+@given(
+    direction=st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda v: sum(c * c for c in v) > 0.05),
+    fraction=st.floats(0.05, 0.99),
+)
 def test_pyramid_realises_any_body_torque_in_envelope(direction, fraction) -> None:
     """Any body torque inside the pyramid's envelope is produced by admissible wheel torques: I dw/dt = T at rest."""
     dyn = spacecraft("pyramid", **FRICTIONLESS)
@@ -247,7 +255,9 @@ def test_pyramid_realises_any_body_torque_in_envelope(direction, fraction) -> No
 def test_zero_dt_returns_same_state_and_bad_inputs_raise() -> None:
     """dt = 0 changes nothing; wrong shapes, negative dt and unknown wheel indices raise DynamicsError."""
     dyn = spacecraft("orthogonal")
-    state = AttitudeState(q=np.array([0, 0, 0, 1.0]), omega_rad_s=np.array([0.01, 0, 0]), wheel_speed_rad_s=np.ones(3))
+    state = AttitudeState(
+        q=np.array([0, 0, 0, 1.0]), omega_rad_s=np.array([0.01, 0, 0]), wheel_speed_rad_s=np.ones(3)
+    )
     same = dyn.step(state, np.zeros(3), 0.0)
     np.testing.assert_allclose(same.omega_rad_s, state.omega_rad_s, rtol=1e-15)
     np.testing.assert_allclose(same.wheel_speed_rad_s, state.wheel_speed_rad_s, rtol=1e-12)

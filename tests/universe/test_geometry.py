@@ -40,7 +40,9 @@ def test_range_at_ca_is_ca_distance_and_minimum(approach, ca, d_km, v_km_s, t_ca
     if np.linalg.norm(np.cross(a, c)) / (np.linalg.norm(a) * np.linalg.norm(c)) < 1e-3:
         return  # parallel directions are rejected, tested separately
     geo = FlybyGeometry(
-        FlybyConfig(ca_time_s=t_ca, ca_distance_km=d_km, speed_km_s=v_km_s, approach_direction=approach, ca_direction=ca),
+        FlybyConfig(
+            ca_time_s=t_ca, ca_distance_km=d_km, speed_km_s=v_km_s, approach_direction=approach, ca_direction=ca
+        ),
         BodiesConfig(),
     )
     assert np.linalg.norm(geo.spacecraft_position_m(t_ca)) == pytest.approx(d_km * 1e3, rel=1e-12)
@@ -49,7 +51,8 @@ def test_range_at_ca_is_ca_distance_and_minimum(approach, ca, d_km, v_km_s, t_ca
     expected = np.hypot(d_km * 1e3, v_km_s * 1e3 * (ts - t_ca))
     np.testing.assert_allclose(ranges, expected, rtol=1e-12)
     assert np.argmin(ranges) == 300
-    np.testing.assert_allclose(geo.spacecraft_velocity_m_s(0.0), v_km_s * 1e3 * a / np.linalg.norm(a), rtol=1e-12, atol=1e-9)
+    velocity = v_km_s * 1e3 * a / np.linalg.norm(a)
+    np.testing.assert_allclose(geo.spacecraft_velocity_m_s(0.0), velocity, rtol=1e-12, atol=1e-9)
 
 
 def test_los_angular_rate_at_ca_is_v_over_d() -> None:

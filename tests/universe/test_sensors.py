@@ -20,7 +20,11 @@ QUIET_GYRO = GyroConfig(arw_deg_sqrt_h=0.0, bias_instability_deg_h=0.0)
 
 def still_state(q=(0.0, 0.0, 0.0, 1.0), omega=(0.0, 0.0, 0.0), wheels=(0.0, 0.0, 0.0)) -> AttitudeState:
     """Return a state with the given attitude, rate and wheel speeds."""
-    return AttitudeState(q=np.array(q, dtype=float), omega_rad_s=np.array(omega, dtype=float), wheel_speed_rad_s=np.array(wheels, dtype=float))
+    return AttitudeState(
+        q=np.array(q, dtype=float),
+        omega_rad_s=np.array(omega, dtype=float),
+        wheel_speed_rad_s=np.array(wheels, dtype=float),
+    )
 
 
 def test_star_tracker_noise_and_bias_match_config() -> None:
@@ -29,11 +33,8 @@ def test_star_tracker_noise_and_bias_match_config() -> None:
     sensors = Sensors(cfg, 3, np.random.default_rng(11))
     truth = Rotation.from_rotvec([0.3, -1.2, 2.0])
     state = still_state(q=truth.as_quat())
-    errors = []
-    for k in range(10_000):
-        q = sensors.measure(k * 0.1, state, 0.1).star_tracker_q
-        errors.append((truth.inv() * Rotation.from_quat(q)).as_rotvec() / ARCSEC)
-    errors = np.array(errors)
+    measured = np.array([sensors.measure(k * 0.1, state, 0.1).star_tracker_q for k in range(10_000)])
+    errors = (truth.inv() * Rotation.from_quat(measured)).as_rotvec() / ARCSEC
     np.testing.assert_allclose(errors.std(axis=0), [6.0, 6.0, 40.0], rtol=0.1)
     np.testing.assert_allclose(errors.mean(axis=0), [20.0, -10.0, 0.0], atol=4 * 40.0 / 100)
 
@@ -72,7 +73,8 @@ def test_gyro_white_noise_sigma_is_arw_over_sqrt_dt() -> None:
     cfg = SensorsConfig(gyro=GyroConfig(arw_deg_sqrt_h=0.15, bias_instability_deg_h=0.0))
     sensors = Sensors(cfg, 3, np.random.default_rng(5))
     omega = np.array([0.01, -0.02, 0.03])
-    err = np.array([sensors.measure(k * 0.05, still_state(omega=omega), 0.05).gyro_rad_s - omega for k in range(10_000)])
+    state = still_state(omega=omega)
+    err = np.array([sensors.measure(k * 0.05, state, 0.05).gyro_rad_s - omega for k in range(10_000)])
     np.testing.assert_allclose(err.std(axis=0), arw / math.sqrt(0.05), rtol=0.1)
     np.testing.assert_allclose(err.mean(axis=0), 0.0, atol=4 * arw / math.sqrt(0.05) / 100)
 
@@ -83,7 +85,8 @@ def test_gyro_angle_random_walk_grows_as_sqrt_time() -> None:
     cfg = SensorsConfig(gyro=GyroConfig(arw_deg_sqrt_h=0.15, bias_instability_deg_h=0.0))
     sensors = Sensors(cfg, 3, np.random.default_rng(9))
     dt = 0.1
-    err = np.array([sensors.measure(k * dt, still_state(), dt).gyro_rad_s for k in range(20_000)])
+    state = still_state()
+    err = np.array([sensors.measure(k * dt, state, dt).gyro_rad_s for k in range(20_000)])
     for window_s in (1.0, 10.0):
         n = round(window_s / dt)
         angles = (err.reshape(-1, n, 3).sum(axis=1) * dt).ravel()
@@ -96,7 +99,8 @@ def test_gyro_bias_random_walk_from_bias_instability() -> None:
     cfg = SensorsConfig(gyro=GyroConfig(arw_deg_sqrt_h=0.0, bias_instability_deg_h=1.0, bias_walk_time_s=3600.0))
     sensors = Sensors(cfg, 3, np.random.default_rng(13))
     dt = 0.1
-    bias = np.array([sensors.measure(k * dt, still_state(), dt).gyro_rad_s for k in range(20_001)])
+    state = still_state()
+    bias = np.array([sensors.measure(k * dt, state, dt).gyro_rad_s for k in range(20_001)])
     np.testing.assert_array_equal(bias[-1], sensors.gyro_bias_rad_s)
     lag = 100
     changes = (bias[lag::lag] - bias[:-lag:lag]).ravel()
@@ -105,7 +109,9 @@ def test_gyro_bias_random_walk_from_bias_instability() -> None:
 
 def test_gyro_initial_bias_and_bias_step_add_exactly() -> None:
     """A reading carries the initial bias, and a fault's bias step adds exactly on top of the same draws."""
-    cfg = SensorsConfig(gyro=GyroConfig(arw_deg_sqrt_h=0.15, bias_instability_deg_h=1.0, initial_bias_deg_h=(36.0, 0.0, -72.0)))
+    cfg = SensorsConfig(
+        gyro=GyroConfig(arw_deg_sqrt_h=0.15, bias_instability_deg_h=1.0, initial_bias_deg_h=(36.0, 0.0, -72.0))
+    )
     step = np.array([1e-3, -2e-3, 0.0])
     plain = Sensors(cfg, 3, np.random.default_rng(3))
     faulty = Sensors(cfg, 3, np.random.default_rng(3))
@@ -113,9 +119,10 @@ def test_gyro_initial_bias_and_bias_step_add_exactly() -> None:
         a = plain.measure(k * 0.1, still_state(), 0.1).gyro_rad_s
         b = faulty.measure(k * 0.1, still_state(), 0.1, gyro_bias_step_rad_s=step).gyro_rad_s
         np.testing.assert_allclose(b - a, step, atol=1e-15)
-    quiet = Sensors(SensorsConfig(gyro=GyroConfig(arw_deg_sqrt_h=0.0, bias_instability_deg_h=0.0, initial_bias_deg_h=(36.0, 0.0, -72.0))), 3, np.random.default_rng(3))
-    reading = quiet.measure(0.0, still_state(omega=(0.1, 0.2, 0.3)), 0.1).gyro_rad_s
-    np.testing.assert_allclose(reading, [0.1 + 36 * math.pi / 180 / 3600, 0.2, 0.3 - 72 * math.pi / 180 / 3600], rtol=1e-12)
+    quiet_cfg = SensorsConfig(gyro=QUIET_GYRO.model_copy(update={"initial_bias_deg_h": (36.0, 0.0, -72.0)}))
+    reading = Sensors(quiet_cfg, 3, np.random.default_rng(3)).measure(0.0, still_state(omega=(0.1, 0.2, 0.3)), 0.1)
+    deg_h = math.pi / 180 / 3600
+    np.testing.assert_allclose(reading.gyro_rad_s, [0.1 + 36 * deg_h, 0.2, 0.3 - 72 * deg_h], rtol=1e-12)
 
 
 def test_wheel_tachometer_noise_matches_config() -> None:
