@@ -32,6 +32,7 @@ from flyby.pus import (
     MalformedPacket,
     Mode,
     ModeChangedEvent,
+    NavigationReport,
     PacketError,
     Ping,
     PingReply,
@@ -203,8 +204,18 @@ def verifications(draw: st.DrawFn) -> Verification:
     return Verification(stage=stage, request_id=rid, failure_code=draw(counters), reason=draw(texts))
 
 
+navigation = st.builds(
+    NavigationReport,
+    frame_id=st.integers(0, 2**32 - 1),
+    dimorphos_col_row=st.none() | st.tuples(f32, f32),
+    didymos_col_row=st.none() | st.tuples(f32, f32),
+    dimorphos_area_px=st.integers(0, 2**32 - 1),
+    los_inertial=st.none() | st.tuples(f64, f64, f64),
+)
+
 reports = st.one_of(
     st.just(PingReply()),
+    navigation,
     verifications(),
     housekeeping(),
     events,
@@ -217,7 +228,7 @@ reports = st.one_of(
     ),
 )
 
-_SETTINGS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+_SETTINGS = settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 # ------------------------------------------------------------------------------------------------ round trips
 
@@ -325,6 +336,13 @@ def test_housekeeping_layout_is_as_documented() -> None:
     assert struct.unpack(">d", d[69:77]) == (1234567.890625,)
     assert struct.unpack(">f", d[77:81]) == (55.5,)
     assert math.isnan(struct.unpack(">f", d[81:85])[0])
+
+
+def test_navigation_report_is_49_octets() -> None:
+    """The navigation report's source data is u32 + u8 + 4 f32 + u32 + 3 f64 = 49 octets."""
+    raw = encode_tm(NavigationReport(frame_id=7), 0xC1, 1, 1.0, 0)
+    assert len(raw) == 6 + 14 + 49 + 2
+    assert raw[20:25] == b"\x00\x00\x00\x07\x00"
 
 
 def test_request_id_is_the_first_four_octets_of_the_tc() -> None:
@@ -518,6 +536,35 @@ def test_values_that_do_not_fit_are_refused_at_construction() -> None:
         _hk_with_q0(1e39)
     with pytest.raises(ValueError, match="reason"):
         Verification(stage=Stage.ACCEPTANCE, request_id=RequestId(apid=1, seq_count=1), reason="no failure")
+
+
+@_SETTINGS
+@given(st.one_of(commands.map(lambda c: encode_tc(c, 1, 1)), reports.map(lambda r: encode_tm(r, 1, 1, 0.0, 0))),
+       st.data())
+def test_decoders_raise_only_packet_errors(raw: bytes, data: st.DataObject) -> None:
+    """Any octets with a valid frame and CRC but scrambled data decode or raise a PacketError, nothing else."""
+    body = bytearray(raw[:-2])
+    for _ in range(data.draw(st.integers(1, 4))):
+        body[data.draw(st.integers(6, len(body) - 1))] = data.draw(st.integers(0, 255))
+    cut = data.draw(st.integers(6 + 5, len(body)))
+    body = body[:cut]
+    body[4:6] = struct.pack(">H", len(body) + 2 - 7)
+    packet = bytes(body) + struct.pack(">H", binascii.crc_hqx(bytes(body), 0xFFFF))
+    for decode in (decode_tc, decode_tm):
+        try:
+            decode(packet)
+        except PacketError:
+            pass
+
+
+@given(st.binary(max_size=64))
+def test_random_octets_raise_only_packet_errors(raw: bytes) -> None:
+    """Arbitrary octets never escape the decoders as anything but a PacketError."""
+    for decode in (decode_tc, decode_tm):
+        try:
+            decode(raw)
+        except PacketError:
+            pass
 
 
 # ------------------------------------------------------------------------------------------------- streams
