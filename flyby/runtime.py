@@ -41,6 +41,17 @@ class PeerStopped(Exception):
         super().__init__(f"{shutdown.node}: {shutdown.reason}")
 
 
+class RelayedFailure(NodeFailure):
+    """Another node announced a failure (its message already names the node at fault and the time)."""
+
+    def __init__(self, shutdown: Shutdown) -> None:
+        self.shutdown = shutdown
+        self.node = shutdown.node
+        self.sim_time_s = shutdown.sim_time_s
+        self.why = shutdown.reason
+        Exception.__init__(self, shutdown.reason)
+
+
 class Attachment:
     """A node on the bus: publish, subscribe, watch peers, wait for messages with a timeout."""
 
@@ -132,6 +143,26 @@ class Attachment:
         """Next message, or None after ``timeout_s``; raise NodeFailure if a peer died or failed."""
         return self._take(timeout_s)
 
+    def exchange(self, key: str, msg: Message, blob: bytes, reply_kind: type[Message], peer: str,
+                 timeout_s: float, resend_s: float = 0.5) -> Received:
+        """Publish ``msg`` and wait for the ``reply_kind`` answer to the same ``step``, resending until it comes.
+
+        A reply to another step (a late duplicate) is dropped; no answer within ``timeout_s`` is the peer's failure.
+        """
+        step = getattr(msg, "step")
+        deadline = self.clock.now() + timeout_s
+        self.publish(key, msg, blob)
+        while True:
+            left = deadline - self.clock.now()
+            if left <= 0:
+                raise NodeFailure(peer, self.sim_time_s,
+                                  f"stopped answering (no reply to step {step} within {timeout_s:g} s)")
+            got = self._take(min(resend_s, left))
+            if got is None:
+                self.publish(key, msg, blob)
+            elif isinstance(got.msg, reply_kind) and getattr(got.msg, "step") == step:
+                return got
+
     def wait_until_gone(self, nodes: Iterable[str], timeout_s: float) -> None:
         """Wait (at most ``timeout_s``) until ``nodes`` have withdrawn their tokens, ignoring other traffic."""
         deadline = self.clock.now() + timeout_s
@@ -167,7 +198,7 @@ class Attachment:
                     if msg.node == self.node:
                         continue
                     if msg.failed:
-                        raise NodeFailure(msg.node, msg.sim_time_s, f"failed: {msg.reason}")
+                        raise RelayedFailure(msg)
                     raise PeerStopped(msg)
                 return item
 

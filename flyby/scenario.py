@@ -7,7 +7,7 @@ Loading turns every problem into a line that names its path in the file
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 from pydantic import Field, ValidationError
@@ -17,6 +17,9 @@ from flyby.model import Frozen
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
 from universe.config import UniverseConfig
+
+if TYPE_CHECKING:
+    from timeline.model import Timeline
 
 
 class BusConfig(Frozen):
@@ -81,3 +84,30 @@ def load_scenario(path: str | Path) -> Scenario:
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "(file)"
         raise ScenarioError(str(p), [f"{where}: not valid YAML: {getattr(exc, 'problem', exc)}"]) from None
     return scenario_from_dict(data, str(p))
+
+
+def scenario_timeline(scenario: Scenario, scenario_path: str | Path) -> Timeline | None:
+    """The command timeline the scenario's ground uploads (``ground.timeline_file``), validated, or None.
+
+    A relative path is taken from the scenario file's folder; every problem is reported as a ScenarioError line
+    prefixed with ``ground.timeline_file``.
+    """
+    from timeline.model import TimelineError
+    from timeline.parse import load_timeline
+
+    name = scenario.ground.timeline_file
+    if name is None:
+        return None
+    path = Path(name)
+    if not path.is_absolute():
+        path = Path(scenario_path).parent / path
+    try:
+        return load_timeline(path)
+    except TimelineError as err:
+        raise ScenarioError(str(scenario_path), [f"ground.timeline_file ({name}): {p}" for p in err.problems]) from None
+
+
+def load_run_inputs(path: str | Path) -> tuple[Scenario, Timeline | None]:
+    """The scenario and the timeline it names, both validated."""
+    scenario = load_scenario(path)
+    return scenario, scenario_timeline(scenario, path)

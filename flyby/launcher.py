@@ -1,0 +1,197 @@
+"""``flyby run``: start the three nodes as processes on loopback, show progress, and make sure none outlives the run.
+
+Each node gets its own free TCP port; the universe listens, the OBSW connects to it, ground connects to both, and
+the launcher joins the bus only to watch status and shutdown messages. Children die with the launcher
+(``PR_SET_PDEATHSIG`` on Linux) and are terminated, then killed, if they do not stop on their own, so no orphan
+is left behind whatever happens.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import logging
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+import zenoh
+
+from flyby.bus import NODES, Keys, free_tcp_port, session_config
+from flyby.clock import WallClock, utc_stamp
+from flyby.errors import DecodeError
+from flyby.messages import Shutdown, Status, decode
+from flyby.runtime import Attachment
+from flyby.scenario import Scenario
+
+EXIT_OK, EXIT_INTERNAL, EXIT_CONFIG, EXIT_PEER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+
+def _die_with_parent() -> None:
+    """In the child: receive SIGTERM when the launcher dies, so no node is orphaned."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+
+
+@dataclass
+class Watch:
+    """What the launcher has heard on the bus."""
+
+    status: dict[str, Status] = field(default_factory=dict)
+    shutdowns: list[Shutdown] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+
+def run_folder(scenario: Scenario, out: Path | None) -> Path:
+    """The folder for this run's outputs: ``out``, or ``runs/<scenario>-<UTC stamp>`` (made unique)."""
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        return out
+    base = Path("runs") / f"{scenario.name}-{utc_stamp()}"
+    path, n = base, 1
+    while path.exists():
+        n += 1
+        path = base.with_name(f"{base.name}-{n}")
+    path.mkdir(parents=True)
+    return path
+
+
+def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], realtime: bool,
+                  log_level: str, python: str = sys.executable) -> dict[str, list[str]]:
+    """The command line of each node: universe listens, obsw connects to it, ground connects to both."""
+    ep = {n: f"tcp/127.0.0.1:{ports[n]}" for n in NODES}
+    common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level]
+    return {
+        "universe": [python, "-m", "universe", *common, "--listen", ep["universe"], *(["--realtime"] if realtime else [])],
+        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"]],
+        "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
+                   "--connect", ep["obsw"]],
+    }
+
+
+def _progress_line(watch: Watch, end_s: float) -> str:
+    with watch.lock:
+        u = watch.status.get("universe")
+        o = watch.status.get("obsw")
+    if u is None:
+        return "starting nodes..."
+    rtf = f"{u.real_time_factor:6.1f}x" if u.real_time_factor is not None else "   -  "
+    mode = o.mode if o is not None and o.mode else "-"
+    return f"t = {u.sim_time_s:8.1f} s / {end_s:.1f} s   real-time factor {rtf}   mode {mode:<20}"
+
+
+def launch(config: Path, scenario: Scenario, out: Path | None = None, realtime: bool = False,
+           log_level: str = "INFO", stream: IO[str] = sys.stdout) -> int:
+    """Run the scenario with the three nodes as local processes; return an exit code (0 = success)."""
+    folder = run_folder(scenario, out)
+    shutil.copyfile(config, folder / "scenario.yaml")
+    run_id = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{folder.name}-{os.getpid()}")
+    keys = Keys(run_id)
+    ports = {n: free_tcp_port() for n in NODES}
+    cmds = node_commands(config, run_id, folder, ports, realtime, log_level)
+    print(f"run folder: {folder}", file=stream)
+    watch = Watch()
+    clock = WallClock()
+    conf = session_config(connect=[f"tcp/127.0.0.1:{ports[n]}" for n in NODES],
+                          multicast_scouting=scenario.bus.multicast_scouting)
+    procs: dict[str, subprocess.Popen[bytes]] = {}
+    logs: dict[str, IO[bytes]] = {}
+    interrupted = False
+    tty = stream.isatty()
+    with zenoh.open(conf) as session:
+
+        def on_status(sample: zenoh.Sample) -> None:
+            try:
+                msg, _ = decode(Status, sample.payload.to_bytes())
+            except DecodeError:
+                return
+            with watch.lock:
+                watch.status[msg.node] = msg
+
+        def on_shutdown(sample: zenoh.Sample) -> None:
+            try:
+                msg, _ = decode(Shutdown, sample.payload.to_bytes())
+            except DecodeError:
+                return
+            with watch.lock:
+                watch.shutdowns.append(msg)
+
+        subs = [session.declare_subscriber(keys.status_all, on_status),
+                session.declare_subscriber(keys.shutdown, on_shutdown)]
+        try:
+            for node in NODES:
+                logs[node] = open(folder / f"{node}.log", "wb")
+                procs[node] = subprocess.Popen(cmds[node], stdout=logs[node], stderr=subprocess.STDOUT,
+                                               stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent,
+                                               start_new_session=True)
+            last_print = -1e9
+            first_exit: float | None = None
+            grace = scenario.bus.reply_timeout_s + 10.0
+            while any(p.poll() is None for p in procs.values()):
+                try:
+                    now = clock.now()
+                    if now - last_print >= (0.5 if tty else 10.0):
+                        line = _progress_line(watch, scenario.universe.end_s)
+                        print(("\r" + line) if tty else line, end="" if tty else "\n", file=stream, flush=True)
+                        last_print = now
+                    failed = [n for n, p in procs.items() if p.returncode not in (None, 0)]
+                    if first_exit is None and (failed or procs["universe"].poll() is not None):
+                        first_exit = now
+                    if first_exit is not None and now - first_exit > grace:
+                        break
+                    threading.Event().wait(0.1)
+                except KeyboardInterrupt:
+                    if interrupted:
+                        break
+                    interrupted = True
+                    print("\ninterrupted: stopping the nodes (Ctrl-C again to kill them)", file=stream, flush=True)
+                    att = Attachment(session, keys, "launcher", clock, logging.getLogger("launcher"))
+                    att.shutdown("interrupted by the user (Ctrl-C)", failed=True)
+                    first_exit = clock.now()
+        finally:
+            for p in procs.values():
+                if p.poll() is None:
+                    p.terminate()
+            for p in procs.values():
+                try:
+                    p.wait(timeout=5)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
+            for f in logs.values():
+                f.close()
+            del subs
+    if tty:
+        print(file=stream)
+    return _summarise(folder, procs, watch, interrupted, stream)
+
+
+def _summarise(folder: Path, procs: dict[str, subprocess.Popen[bytes]], watch: Watch, interrupted: bool,
+               stream: IO[str]) -> int:
+    codes = {n: p.returncode for n, p in procs.items()}
+    failures = [s for s in watch.shutdowns if s.failed]
+    print("nodes: " + ", ".join(f"{n} exit {c}" for n, c in codes.items()), file=stream)
+    if failures:
+        print(f"run FAILED: {failures[0].reason}", file=stream)
+    elif any(c != 0 for c in codes.values()):
+        bad = next(n for n, c in codes.items() if c != 0)
+        print(f"run FAILED: node '{bad}' exited with code {codes[bad]}; see {folder / (bad + '.log')}", file=stream)
+    summary = folder / "summary.json"
+    if summary.exists():
+        data = json.loads(summary.read_text())
+        for line in data.get("lines", []):
+            print(line, file=stream)
+    print(f"outputs in {folder}", file=stream)
+    if interrupted:
+        return EXIT_INTERRUPTED
+    if failures or any(c != 0 for c in codes.values()):
+        return EXIT_PEER if any(c == EXIT_PEER for c in codes.values()) or failures else EXIT_INTERNAL
+    return EXIT_OK
