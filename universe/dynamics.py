@@ -37,17 +37,21 @@ class AttitudeState:
     wheel_speed_rad_s: np.ndarray
 
 
-def quaternion_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Return v rotated by the unit scalar-last quaternion q (body vector -> inertial vector for a body->inertial q)."""
+def body_to_inertial_matrix(q: np.ndarray) -> np.ndarray:
+    """Return the 3x3 rotation matrix of the unit scalar-last quaternion q (body -> inertial for a body->inertial q)."""
     x, y, z, w = (float(c) for c in q)
-    r = np.array(
+    return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
             [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
         ]
     )
-    return r @ np.asarray(v, dtype=float)
+
+
+def quaternion_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Return v rotated by the unit scalar-last quaternion q (body vector -> inertial vector for a body->inertial q)."""
+    return body_to_inertial_matrix(q) @ np.asarray(v, dtype=float)
 
 
 def pyramid_axes_body(elevation_deg: float) -> np.ndarray:
