@@ -1,0 +1,208 @@
+"""The mode manager: the flyby sequence, the allowed graph, one report per transition, typed refusals."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from hypothesis import settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
+
+from obsw.config import ModesConfig
+from obsw.errors import CommandRejected, IllegalTransition, InternalFault, RejectReason
+from obsw.modes import (
+    CaEstimate,
+    Cause,
+    Fault,
+    Mode,
+    ModeManager,
+    SetMode,
+    TargetDetected,
+    Tick,
+    WheelSaturation,
+    allowed_transitions,
+)
+
+SAFE, SB, AQ, NT, AT = "SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING"
+
+# The graph written out by hand from the mode design (DESIGN.md, paper): the independent truth of these tests.
+COMMANDS = {SAFE: {SB}, SB: {SAFE, AQ}, AQ: {SAFE, SB}, NT: {SAFE, SB, AQ, AT}, AT: {SAFE, SB}}
+GRAPH = {(a, b) for a, bs in COMMANDS.items() for b in bs} | {
+    (SB, SAFE), (AQ, SAFE), (NT, SAFE), (AT, SAFE),  # fault / wheel saturation
+    (AQ, NT),  # target acquired
+    (NT, AT),  # C/A-30 s by the on-board estimate
+    (NT, AQ),  # target lost
+    (AQ, SB), (NT, SB), (AT, SB),  # flyby over
+}  # fmt: skip
+
+
+def test_table_graph_is_the_designed_graph() -> None:
+    """The edges the table can produce are exactly the designed graph."""
+    assert {(a.value, b.value) for a, b in allowed_transitions()} == GRAPH
+
+
+def test_nominal_flyby_sequence() -> None:
+    """STANDBY -> ACQUISITION (command) -> NOMINAL (detection) -> AUTONOMOUS (C/A-30 s) -> STANDBY (C/A+90 s)."""
+    cfg = ModesConfig()
+    m = ModeManager(cfg)
+    ca = 1000.0
+    events = [m.handle(SetMode(Mode.ACQUISITION), ca - 240.0), m.handle(CaEstimate(ca), ca - 200.0)]
+    for k in range(2400):  # 10 Hz from C/A-200 s to C/A+40 s, target seen every second
+        t = ca - 200.0 + 0.1 * k
+        if k % 10 == 0:
+            events.append(m.handle(TargetDetected(), t))
+        events.append(m.handle(Tick(), t))
+    events.append(m.handle(Tick(), ca + 89.9))
+    events.append(m.handle(Tick(), ca + 90.0))
+    reports = [e for e in events if e is not None]
+    assert [(e.from_mode, e.to_mode, e.cause) for e in reports] == [
+        (Mode.STANDBY, Mode.ACQUISITION, Cause.COMMANDED),
+        (Mode.ACQUISITION, Mode.NOMINAL_TRACKING, Cause.TARGET_ACQUIRED),
+        (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING, Cause.AUTONOMY_TIME),
+        (Mode.AUTONOMOUS_TRACKING, Mode.STANDBY, Cause.FLYBY_OVER),
+    ]
+    assert reports[1].obt_s == ca - 200.0
+    assert reports[2].obt_s == pytest.approx(ca - 30.0, abs=0.1 + 1e-9) and reports[2].obt_s >= ca - 30.0
+    assert reports[3].obt_s == ca + 90.0 and "1000.000" in reports[3].detail
+
+
+def test_target_lost_only_in_nominal_tracking() -> None:
+    """Unseen past the timeout: NOMINAL goes back to ACQUISITION, AUTONOMOUS keeps tracking on its trajectory."""
+    cfg = ModesConfig(target_lost_timeout_s=10.0)
+    m = ModeManager(cfg, initial=Mode.ACQUISITION)
+    m.handle(TargetDetected(), 0.0)
+    assert m.handle(Tick(), 10.0) is None  # exactly the timeout: not yet lost
+    lost = m.handle(Tick(), 10.01)
+    assert lost is not None and (lost.to_mode, lost.cause) == (Mode.ACQUISITION, Cause.TARGET_LOST)
+    m.handle(TargetDetected(), 20.0)
+    m.handle(SetMode(Mode.AUTONOMOUS_TRACKING), 21.0)
+    assert all(m.handle(Tick(), 21.0 + k) is None for k in range(100))
+    assert m.mode == Mode.AUTONOMOUS_TRACKING
+
+
+def test_faults_go_safe_and_only_a_command_leaves_safe() -> None:
+    """A fault or saturation from any non-SAFE mode gives SAFE; in SAFE events do nothing; only STANDBY is commandable."""
+    for start in (Mode.STANDBY, Mode.ACQUISITION, Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING):
+        for trig, cause in ((Fault("star tracker lost"), Cause.FAULT), (WheelSaturation(2), Cause.WHEEL_SATURATION)):
+            m = ModeManager(ModesConfig(), initial=start)
+            e = m.handle(trig, 5.0)
+            assert e is not None and (e.from_mode, e.to_mode, e.cause) == (start, Mode.SAFE, cause)
+            assert e.detail in ("star tracker lost", "wheel 2")
+    m = ModeManager(ModesConfig(), initial=Mode.SAFE)
+    m.handle(CaEstimate(0.0), 0.0)
+    for trig in (TargetDetected(), Tick(), Fault("x"), WheelSaturation()):
+        assert m.handle(trig, 100.0) is None
+    with pytest.raises(IllegalTransition) as err:
+        m.handle(SetMode(Mode.ACQUISITION), 101.0)
+    assert isinstance(err.value, CommandRejected) and err.value.reason == RejectReason.ILLEGAL_TRANSITION
+    assert "cannot command ACQUISITION from SAFE; allowed from SAFE: STANDBY" in str(err.value)
+    assert m.mode == Mode.SAFE
+    assert m.handle(SetMode(Mode.STANDBY), 102.0) is not None and m.mode == Mode.STANDBY
+
+
+def test_reasserting_the_mode_is_accepted_silently() -> None:
+    """Commanding the current mode is not an error and reports no transition."""
+    m = ModeManager(ModesConfig(), initial=Mode.ACQUISITION)
+    assert m.handle(SetMode(Mode.ACQUISITION), 1.0) is None and m.mode == Mode.ACQUISITION
+
+
+def test_bad_internal_inputs_are_internal_faults() -> None:
+    """A non-finite OBT or C/A, or an unknown trigger, is the flight software's own fault."""
+    m = ModeManager(ModesConfig())
+    with pytest.raises(InternalFault, match="obt_s"):
+        m.handle(Tick(), math.nan)
+    with pytest.raises(InternalFault, match="ca_obt_s"):
+        m.handle(CaEstimate(math.inf), 0.0)
+    with pytest.raises(InternalFault, match="unknown trigger"):
+        m.handle("go", 0.0)  # type: ignore[arg-type]
+
+
+class ModesVersusReference(RuleBasedStateMachine):
+    """Any sequence of commands, events, estimates and time (jumps back included) against a hand-written reference."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cfg = ModesConfig()
+        self.m = ModeManager(self.cfg)
+        self.mode = SB
+        self.obt = 0.0
+        self.ca: float | None = None
+        self.seen: float | None = None
+
+    def _expect(self, trigger: object) -> str | None:
+        """The reference: the next mode, or None when the command must be refused."""
+        if isinstance(trigger, SetMode):
+            t = trigger.mode.value
+            return t if (t == self.mode or t in COMMANDS[self.mode]) else None
+        if isinstance(trigger, (Fault, WheelSaturation)):
+            return SAFE
+        if isinstance(trigger, TargetDetected):
+            return NT if self.mode == AQ else self.mode
+        if isinstance(trigger, Tick):
+            if self.mode in (AQ, NT, AT) and self.ca is not None and self.obt >= self.ca + self.cfg.standby_after_ca_s:
+                return SB
+            if self.mode == NT and self.ca is not None and self.obt >= self.ca - self.cfg.autonomous_before_ca_s:
+                return AT
+            if self.mode == NT and self.seen is not None and self.obt - self.seen > self.cfg.target_lost_timeout_s:
+                return AQ
+        return self.mode
+
+    def _apply(self, trigger: object) -> None:
+        expected = self._expect(trigger)
+        before = self.mode
+        if expected is None:
+            with pytest.raises(IllegalTransition):
+                self.m.handle(trigger, self.obt)  # type: ignore[arg-type]
+            assert self.m.mode.value == before
+            return
+        event = self.m.handle(trigger, self.obt)  # type: ignore[arg-type]
+        assert self.m.mode.value == expected
+        if expected == before:
+            assert event is None
+        else:
+            assert event is not None
+            assert (event.from_mode.value, event.to_mode.value, event.obt_s) == (before, expected, self.obt)
+            assert (before, expected) in GRAPH
+        self.mode = expected
+        if self.mode not in (NT, AT):
+            self.seen = None
+        elif isinstance(trigger, TargetDetected):
+            self.seen = self.obt
+
+    # one rule with weighted kinds, so that the walk leaves SAFE and reaches the tracking modes often
+    @rule(
+        kind=st.sampled_from(
+            ["tick"] * 4 + ["forward_command"] * 3 + ["detection"] * 3 + ["ca"] * 2 + ["legal_command", "any_command", "failure"]
+        ),
+        data=st.data(),
+    )
+    def step(self, kind: str, data: st.DataObject) -> None:
+        """A ground command (onwards, legal or any), a detection, a failure, a C/A estimate, or time moving (backwards too)."""
+        onwards = sorted(COMMANDS[self.mode] - {SAFE, SB}) or sorted(COMMANDS[self.mode])
+        if kind == "forward_command":
+            self._apply(SetMode(Mode(data.draw(st.sampled_from(onwards)))))
+        elif kind == "legal_command":
+            self._apply(SetMode(Mode(data.draw(st.sampled_from(sorted(COMMANDS[self.mode]))))))
+        elif kind == "any_command":
+            self._apply(SetMode(data.draw(st.sampled_from(list(Mode)))))
+        elif kind == "detection":
+            self._apply(TargetDetected())
+        elif kind == "failure":
+            self._apply(data.draw(st.sampled_from([Fault("injected"), WheelSaturation(0)])))
+        elif kind == "ca":
+            self.ca = self.obt + data.draw(st.floats(-150.0, 150.0))
+            self._apply(CaEstimate(self.ca))
+        else:
+            self.obt += data.draw(st.floats(0.0, 12.0) | st.floats(0.0, 60.0) | st.floats(-20.0, 0.0))
+            self._apply(Tick())
+
+    @invariant()
+    def mode_is_legal(self) -> None:
+        """The mode is always one of the five, and the reference's."""
+        assert isinstance(self.m.mode, Mode)
+        assert self.m.mode.value == self.mode
+
+
+ModesVersusReference.TestCase.settings = settings(max_examples=80, stateful_step_count=30, deadline=None)
+test_modes_match_reference = ModesVersusReference.TestCase
