@@ -8,8 +8,8 @@ This module is an adapter (it owns the disk); decoding is ``flyby.pus``. Tables:
   filled from the primary header when 4 octets arrived (not trusted), its other header fields are NULL.
 - ``parameters``: long format, one row per (packet, parameter): name, OBT, value. Names are ``<Report>.<field>``
   with ``[i]`` for sequence items and ``.`` into nested values, e.g. ``Housekeeping.q[3]``,
-  ``Verification.request_id.seq_count``; absent (None) values and raw octets are not stored. Indexed on
-  (name, obt_s).
+  ``Verification.request_id.seq_count``; absent (None) values and raw octets are not stored, a NaN reads back
+  as NULL (SQLite has no NaN). Indexed on (name, obt_s).
 - ``sequence_anomalies``: per APID, gaps in the 14-bit sequence count (with the number of packets missing),
   duplicates and late (out-of-order) packets.
 
