@@ -22,7 +22,7 @@ from __future__ import annotations
 import csv
 import io
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from datetime import date, datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -124,7 +124,13 @@ def _tag_from_value(value: Any) -> Tag:
 
 
 def _entry(
-    row: str, tag_value: Any, name: Any, args: Any, is_first: bool, registry: CommandRegistry, field_of: Any
+    row: str,
+    tag_value: Any,
+    name: Any,
+    args: Any,
+    is_first: bool,
+    registry: CommandRegistry,
+    field_of: Callable[[str], str],
 ) -> tuple[TimelineEntry | None, list[str]]:
     """Validate one entry; return it (or None) and the problems found, each naming ``row`` and a field."""
     problems: list[str] = []
@@ -208,7 +214,8 @@ def timeline_from_yaml_text(text: str, source: str = "<timeline>", registry: Com
 def timeline_from_csv_text(text: str, source: str = "<timeline>", registry: CommandRegistry | None = None) -> Timeline:
     """Parse and validate a CSV timeline (header: time, command, then argument columns)."""
     reg = registry or default_registry()
-    reader = csv.reader(io.StringIO(text))
+    # Spreadsheets often save UTF-8 with a byte-order mark, which would otherwise stick to the first column name.
+    reader = csv.reader(io.StringIO(text.removeprefix("\ufeff")))
     try:
         header = next((r for r in reader if any(c.strip() for c in r)), None)
     except csv.Error as exc:

@@ -259,6 +259,15 @@ def test_bad_csv_names_row_line_and_column(text: str, expected: str) -> None:
     assert any(p.startswith(expected) for p in err.value.problems), err.value.problems
 
 
+def test_csv_saved_with_a_byte_order_mark_reads_normally(tmp_path: Path) -> None:
+    """A CSV saved by a spreadsheet with a UTF-8 byte-order mark reads as without it."""
+    text = CSV_HEADER + "CA-240s,set_mode,ACQUISITION,,\n"
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert load_timeline(path) == timeline_from_csv_text(text)
+    assert timeline_from_csv_text("\ufeff" + text) == timeline_from_csv_text(text)
+
+
 def test_csv_rows_count_commands_and_lines_count_the_file() -> None:
     """After blank lines, the row number counts commands and the line number counts file lines."""
     with pytest.raises(TimelineError) as err:
