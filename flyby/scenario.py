@@ -55,6 +55,8 @@ def _message(err: dict[str, Any]) -> str:
         op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
         bound = next(iter(err["ctx"].values()))
         msg = f"must be {op[err['type']]} {bound:g}" if isinstance(bound, float) else f"must be {op[err['type']]} {bound}"
+    elif err["type"] == "string_pattern_mismatch":
+        msg = f"must match {err['ctx']['pattern']} (letters, digits, '.', '_', '-'), got {err['input']!r}"
     elif msg.startswith("Value error, "):
         msg = msg[len("Value error, ") :]
     return f"{loc}: {msg}"

@@ -28,6 +28,13 @@ class GroundConfig(Frozen):
         "(default: at the start of the run)",
     )
     link: LinkConfig = LinkConfig()
+    timeline_file: str | None = Field(
+        None, description="command timeline (YAML or CSV) uploaded after the nominal trajectory; a relative path is "
+        "taken from the scenario file's folder"
+    )
+    upload_margin_s: float = Field(
+        5.0, ge=0, description="ground refuses timeline commands tagged earlier than now + light time + this, s"
+    )
     a_priori_obt_offset_s: float = Field(
         26_499_202.0,
         description="OBT minus UTC (s from the epoch) that ground assumes before any time report, s "
