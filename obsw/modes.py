@@ -229,7 +229,8 @@ class ModeManager:
         if target == self.mode:
             return None  # re-asserting the current mode is accepted and changes nothing
         if target not in COMMANDABLE[self.mode]:
-            raise IllegalTransition(self.mode.value, target.value, tuple(sorted(m.value for m in COMMANDABLE[self.mode])))
+            allowed = tuple(sorted(m.value for m in COMMANDABLE[self.mode]))
+            raise IllegalTransition(self.mode.value, target.value, allowed)
         return self._enter(target, obt_s, Cause.COMMANDED, "")
 
     def _enter(self, target: Mode, obt_s: float, cause: Cause, detail: str) -> ModeEvent:

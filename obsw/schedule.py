@@ -119,7 +119,7 @@ class TimeBasedSchedule:
     """PUS service 11 time-based schedule of at most ``capacity`` pending entries, refusing tags within ``margin_s``."""
 
     def __init__(self, capacity: int, margin_s: float, payload_check: PayloadCheck | None = None) -> None:
-        """``payload_check`` raises ``CommandRejected`` for an unknown command or bad argument (the dictionary's job)."""
+        """``payload_check`` raises ``CommandRejected`` for an unknown command or a bad argument."""
         if not _is_int(capacity) or capacity < 1:
             raise ValueError(f"capacity must be a positive integer, got {capacity!r}")
         if not _is_real(margin_s) or margin_s < 0:
@@ -195,7 +195,7 @@ class TimeBasedSchedule:
         """Move the selected entries (all if None) by ``delta_s``, atomically; return them as shifted."""
         _require_time(now_obt_s, "now_obt_s")
         if not _is_real(delta_s):
-            raise CommandRejected(RejectReason.MALFORMED, f"time shift delta_s must be a finite number, got {delta_s!r}")
+            raise CommandRejected(RejectReason.MALFORMED, f"time shift delta_s must be finite, got {delta_s!r}")
         if selection is not None:
             self._require_pending(selection)
         chosen = [e for e in self._entries if selection is None or selection.matches(e)]
@@ -247,9 +247,13 @@ class TimeBasedSchedule:
         if not _is_int(rid) or rid < 0:
             raise CommandRejected(RejectReason.MALFORMED, f"request_id must be an integer >= 0, got {rid!r}")
         if not _is_real(req.tag_obt_s):
-            raise CommandRejected(RejectReason.MALFORMED, f"request {rid}: tag_obt_s must be finite, got {req.tag_obt_s!r}")
+            raise CommandRejected(
+                RejectReason.MALFORMED, f"request {rid}: tag_obt_s must be finite, got {req.tag_obt_s!r}"
+            )
         if not _is_int(req.priority):
-            raise CommandRejected(RejectReason.MALFORMED, f"request {rid}: priority must be an integer, got {req.priority!r}")
+            raise CommandRejected(
+                RejectReason.MALFORMED, f"request {rid}: priority must be an integer, got {req.priority!r}"
+            )
         if req.ca_offset_s is not None and not _is_real(req.ca_offset_s):
             raise CommandRejected(
                 RejectReason.MALFORMED, f"request {rid}: ca_offset_s must be finite or absent, got {req.ca_offset_s!r}"

@@ -104,7 +104,8 @@ class Oscillator:
             raise ClockModelError(f"true time must be finite, got {t}")
         if self.rate(t) <= 0.0:
             raise ClockModelError(
-                f"true time {t} s is outside the oscillator model: its rate 1 + d + r t = {self.rate(t)} is not positive"
+                f"true time {t} s is outside the oscillator model: "
+                f"its rate 1 + d + r t = {self.rate(t)} is not positive"
             )
 
     def _jumps_up_to(self, t: float) -> float:
@@ -142,7 +143,8 @@ class Oscillator:
         self._check_domain(t_true_s)
         if self._last_t is not None and t_true_s < self._last_t:
             raise ClockModelError(
-                f"OBT readings must come in true-time order: {t_true_s} s is before the last reading at {self._last_t} s"
+                f"OBT readings must come in true-time order: "
+                f"{t_true_s} s is before the last reading at {self._last_t} s"
             )
         reading = self.obt_mean_s(t_true_s)
         if self._bound_s > 0.0:

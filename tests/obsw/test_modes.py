@@ -82,7 +82,7 @@ def test_target_lost_only_in_nominal_tracking() -> None:
 
 
 def test_faults_go_safe_and_only_a_command_leaves_safe() -> None:
-    """A fault or saturation from any non-SAFE mode gives SAFE; in SAFE events do nothing; only STANDBY is commandable."""
+    """Fault or saturation from any non-SAFE mode gives SAFE; in SAFE events do nothing; only STANDBY is commandable."""
     for start in (Mode.STANDBY, Mode.ACQUISITION, Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING):
         for trig, cause in ((Fault("star tracker lost"), Cause.FAULT), (WheelSaturation(2), Cause.WHEEL_SATURATION)):
             m = ModeManager(ModesConfig(), initial=start)
@@ -173,12 +173,16 @@ class ModesVersusReference(RuleBasedStateMachine):
     # one rule with weighted kinds, so that the walk leaves SAFE and reaches the tracking modes often
     @rule(
         kind=st.sampled_from(
-            ["tick"] * 4 + ["forward_command"] * 3 + ["detection"] * 3 + ["ca"] * 2 + ["legal_command", "any_command", "failure"]
+            ["tick"] * 4
+            + ["forward_command"] * 3
+            + ["detection"] * 3
+            + ["ca"] * 2
+            + ["legal_command", "any_command", "failure"]
         ),
         data=st.data(),
     )
     def step(self, kind: str, data: st.DataObject) -> None:
-        """A ground command (onwards, legal or any), a detection, a failure, a C/A estimate, or time moving (backwards too)."""
+        """A command (onwards, legal or any), a detection, a failure, a C/A estimate, or time moving (back too)."""
         onwards = sorted(COMMANDS[self.mode] - {SAFE, SB}) or sorted(COMMANDS[self.mode])
         if kind == "forward_command":
             self._apply(SetMode(Mode(data.draw(st.sampled_from(onwards)))))

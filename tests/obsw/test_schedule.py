@@ -18,7 +18,9 @@ from universe.oscillator import Oscillator
 # --- rejections and basic rules -------------------------------------------------------------------
 
 
-def _req(rid: int, tag: float, priority: int = 0, ca_offset_s: float | None = None, payload: object = b"") -> ScheduleRequest:
+def _req(
+    rid: int, tag: float, priority: int = 0, ca_offset_s: float | None = None, payload: object = b""
+) -> ScheduleRequest:
     return ScheduleRequest(request_id=rid, tag_obt_s=tag, payload=payload, priority=priority, ca_offset_s=ca_offset_s)
 
 
@@ -88,7 +90,7 @@ def test_ties_break_on_priority_then_insertion() -> None:
 
 
 def test_time_shift_is_atomic_and_checked() -> None:
-    """A shift that would bring any selected tag within the margin changes nothing; a legal one moves only the selection."""
+    """A shift bringing any selected tag within the margin changes nothing; a legal one moves only the selection."""
     s = TimeBasedSchedule(capacity=10, margin_s=1.0)
     s.insert(0.0, [_req(1, 10.0), _req(2, 20.0), _req(3, 30.0)])
     with pytest.raises(CommandRejected) as err:
@@ -181,7 +183,7 @@ def test_every_command_released_once_in_order_within_one_tick(
     seed: int,
     timeline: list[tuple[float, int]],
 ) -> None:
-    """Envelope |offset|<=1e4 s, |drift|<=100 ppm, |ageing|<=10 ppm/day, jitter<=1 ms: each command once, in order, not early, <=1 tick late."""
+    """Offset<=1e4 s, drift<=100 ppm, ageing<=10 ppm/day, jitter<=1 ms: once, in order, not early, <=1 tick late."""
     cfg = OscillatorConfig(
         initial_offset_s=offset_s, drift_ppm=drift_ppm, drift_rate_ppm_per_day=drift_rate_ppm_per_day, jitter_s=jitter_s
     )
