@@ -100,6 +100,19 @@ class ImagingConfig(Frozen):
         description="largest change between frames of the Dimorphos offset from Didymos, in Didymos diameters "
         "(at C/A the 1.19 km baseline turns at up to 7/55 rad/s, 0.13 of the 1.5 diameter separation per s)",
     )
+    plume_min_area_px: int = Field(
+        50,
+        ge=1,
+        description="blobs of at least this area, px at 512 scale, are tested for being diffuse (plume); smaller "
+        "ones are too few pixels for a brightness distribution",
+    )
+    plume_faint_fraction: float = Field(
+        0.4,
+        gt=0,
+        lt=1,
+        description="a blob is diffuse when more than this fraction of its pixels is below half its 95th-percentile "
+        "level above background (lit bodies, even crescents at 135 deg phase: < 0.3; the rendered plume: > 0.45)",
+    )
     centroid_noise_px: float = Field(
         2.0,
         ge=0,

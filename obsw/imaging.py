@@ -52,6 +52,8 @@ class Blob:
     mean_dn8: float  # mean 8-bit brightness of the region's pixels
     peak_dn8: int
     elongation: float  # major/minor axis ratio from the second central moments (1 for a disc)
+    threshold_dn8: int  # the region is the 8-connected set of pixels above this 8-bit value
+    split_from: int = 0  # label of the diffuse blob this core was cut out of (0: not split)
 
     @property
     def diameter_px(self) -> int:
@@ -352,6 +354,17 @@ def _distance(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
+def _separation(blob: Blob, point: tuple[float, float]) -> float:
+    """Return the distance from a point to a body blob: to its centroid, or to its box for a plume core, whose
+    centroid is pulled along the plume while Dimorphos, the source, is at one end of it."""
+    if not blob.split_from:
+        return _distance(blob.centroid_col_row, point)
+    x, y, w, h = blob.bbox_col_row_w_h
+    dx = max(x - point[0], 0.0, point[0] - (x + w - 1))
+    dy = max(y - point[1], 0.0, point[1] - (y + h - 1))
+    return math.hypot(dx, dy)
+
+
 def _relative(blob: Blob, origin: Blob) -> tuple[float, float]:
     """Return the centroid of ``blob`` relative to the centroid of ``origin``."""
     return (
@@ -378,8 +391,10 @@ def identify_bodies(
     Dimorphos is a smaller candidate (area at most ``dimorphos_max_area_fraction`` of Didymos, peak at least
     ``dimorphos_min_peak_fraction`` of Didymos's) within ``dimorphos_max_separation_didymos_diameters`` of
     Didymos; among those, the one whose offset from Didymos continues the previous one (stars move relative to
-    Didymos at the tracking rate), else the largest. Before Dimorphos is resolved (merged with Didymos or below
-    the minimum area) it is None.
+    Didymos at the tracking rate), else the largest. A core cut out of the plume may exceed the area fraction:
+    the ejecta leave Dimorphos, so after the impact its blob is Dimorphos with the dense ejecta around it, and
+    its centroid is their common photocentre. Before Dimorphos is resolved (merged with Didymos or below the
+    minimum area) it is None.
     """
     candidates = [
         b for b in blobs if b.area_px >= cfg.min_body_area_px and b.elongation <= cfg.max_body_elongation
@@ -410,9 +425,9 @@ def identify_bodies(
         b
         for b in candidates
         if b is not didymos
-        and b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px
+        and (b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px or b.split_from)
         and b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
-        and _distance(b.centroid_col_row, didymos.centroid_col_row) <= gate
+        and _separation(b, didymos.centroid_col_row) <= gate
     ]
     if not in_gate:
         return didymos, None
@@ -425,24 +440,37 @@ def identify_bodies(
     return didymos, _largest(in_gate)
 
 
-def blobs_of(components: Components, values8: np.ndarray) -> tuple[Blob, ...]:
-    """Return the Blob records of labelled components, with brightness from the 8-bit foreground pixel values."""
+def blobs_of(
+    components: Components,
+    values8: np.ndarray,
+    threshold_dn8: int,
+    first_label: int = 1,
+    offset_col_row: tuple[int, int] = (0, 0),
+    split_from: int = 0,
+) -> list[Blob]:
+    """Return the Blob records of labelled components, with brightness from the 8-bit foreground pixel values.
+
+    Labels run from ``first_label``; ``offset_col_row`` shifts coordinates of components found in a crop.
+    """
     k = components.area_px.size
     if k == 0:
-        return ()
+        return []
     comp = components.pixel_component
     mean = np.bincount(comp, weights=values8, minlength=k) / components.area_px
     peak = np.zeros(k, dtype=np.int64)
     np.maximum.at(peak, comp, values8)
-    return tuple(
+    dx, dy = offset_col_row
+    return [
         Blob(
-            label=i + 1,
+            label=first_label + i,
             area_px=area,
-            centroid_col_row=(c, r),
-            bbox_col_row_w_h=(x, y, w, h),
+            centroid_col_row=(c + dx, r + dy),
+            bbox_col_row_w_h=(x + dx, y + dy, w, h),
             mean_dn8=m,
             peak_dn8=p,
             elongation=e,
+            threshold_dn8=threshold_dn8,
+            split_from=split_from,
         )
         for i, (area, c, r, x, y, w, h, m, p, e) in enumerate(
             zip(
@@ -459,7 +487,56 @@ def blobs_of(components: Components, values8: np.ndarray) -> tuple[Blob, ...]:
                 strict=True,
             )
         )
-    )
+    ]
+
+
+def is_diffuse(values8: np.ndarray, background_dn8: int, cfg: ImagingConfig) -> bool:
+    """Return whether a blob's pixels are mostly faint, as in the ejecta plume rather than a lit surface.
+
+    Faint means below half of the blob's 95th-percentile level above the background (lower order statistic).
+    A lit surface is nearly uniform (lunar-Lambert) with a dim rim along the terminator only; the plume fades
+    smoothly away from its source, so most of its pixels are faint.
+    """
+    above = values8.astype(np.int64) - background_dn8
+    k95 = (95 * (above.size - 1)) // 100
+    level = int(np.partition(above, k95)[k95])
+    return bool(np.count_nonzero(2 * above < level) > cfg.plume_faint_fraction * above.size)
+
+
+def split_diffuse_blobs(
+    blobs: list[Blob], components: Components, values8: np.ndarray, background_dn8: int, width: int, cfg: ImagingConfig
+) -> list[Blob]:
+    """Return the blobs with every large diffuse blob (plume, possibly merged with the bodies) replaced by the
+    8-connected cores above the Otsu threshold of its own pixels: the bodies and the plume's densest part."""
+    big = [b.label - 1 for b in blobs if b.area_px >= cfg.plume_min_area_px]
+    if not big:
+        return blobs
+    order = np.argsort(components.pixel_component, kind="stable")
+    ends = np.cumsum(components.area_px)
+    out = list(blobs)
+    replaced: set[int] = set()
+    next_label = len(blobs) + 1
+    for i in big:
+        sel = order[ends[i] - components.area_px[i] : ends[i]]
+        vals = values8[sel]
+        if not is_diffuse(vals, background_dn8, cfg):
+            continue
+        t2 = otsu_threshold(np.bincount(vals, minlength=256))
+        keep = vals > t2
+        pix = components.pixel_index[sel][keep]
+        rows, cols = np.divmod(pix, width)
+        left, top = int(components.left[i]), int(components.top[i])
+        h, w = int(components.height[i]), int(components.width[i])
+        crop_vals = np.zeros((h, w), dtype=np.uint8)
+        crop_vals[rows - top, cols - left] = vals[keep]
+        crop_mask = np.zeros((h, w), dtype=bool)
+        crop_mask[rows - top, cols - left] = True
+        sub = connected_components(crop_mask)
+        cores = blobs_of(sub, crop_vals.ravel()[sub.pixel_index], t2, next_label, (left, top), i + 1)
+        next_label += len(cores)
+        out.extend(cores)
+        replaced.add(i + 1)
+    return [b for b in out if b.label not in replaced]
 
 
 def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | None = None) -> Detections:
@@ -474,7 +551,9 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     first_above = int(np.searchsorted(lut, thr.threshold_dn8, side="right"))
     components = connected_components(image >= first_above)
     values8 = lut[image.ravel()[components.pixel_index]]
-    blobs = blobs_of(components, values8)
+    blobs = split_diffuse_blobs(
+        blobs_of(components, values8, thr.threshold_dn8), components, values8, thr.background_dn8, n, cfg
+    )
     didymos, dimorphos = identify_bodies(blobs, cfg, previous)
     centre = 0.5 * (n - 1)
 
@@ -487,7 +566,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     did_px, did_rad = offsets(didymos)
     dim_px, dim_rad = offsets(dimorphos)
     return Detections(
-        blobs=blobs,
+        blobs=tuple(blobs),
         didymos=didymos,
         dimorphos=dimorphos,
         didymos_offset_px=did_px,

@@ -38,15 +38,15 @@ def reference_8bit(binned: np.ndarray, bit_depth: int, law: str) -> np.ndarray:
     """Return the 8-bit image of a binned frame: 'sqrt' companding or a 'shift' to the top 8 bits."""
     vmax = float((1 << bit_depth) - 1)
     if law == "sqrt":
-        root = cv2.sqrt(binned.astype(np.float64) * (1.0 / vmax))
-        return np.floor(root * 255.0 + 0.5).astype(np.uint8)
+        root = cv2.sqrt(binned.astype(np.float32) * np.float32(1.0 / vmax))
+        return cv2.convertScaleAbs(root, alpha=255.0)  # rounds to nearest and saturates to uint8
     if law == "shift":
         return cv2.convertScaleAbs(np.right_shift(binned, bit_depth - 8))
     raise ValueError(f"unknown compression law {law!r}")
 
 
-def reference_threshold(image8: np.ndarray, k_sigma: float, margin_dn8: int) -> tuple[int, int]:
-    """Return (threshold, otsu): max(OpenCV Otsu, lower median + max(ceil(k 1.4826 MAD), margin))."""
+def reference_threshold(image8: np.ndarray, k_sigma: float, margin_dn8: int) -> tuple[int, int, int]:
+    """Return (threshold, otsu, median): max(OpenCV Otsu, lower median + max(ceil(k 1.4826 MAD), margin))."""
     otsu, _ = cv2.threshold(image8, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
     hist = cv2.calcHist([image8], [0], None, [256], [0, 256]).ravel()
     half = (image8.size + 1) // 2
@@ -55,7 +55,7 @@ def reference_threshold(image8: np.ndarray, k_sigma: float, margin_dn8: int) -> 
     dev_hist = cv2.calcHist([deviation], [0], None, [256], [0, 256]).ravel()
     mad = int(np.argmax(np.cumsum(dev_hist) >= half))
     floor = median + max(math.ceil(k_sigma * MAD_TO_SIGMA * mad), margin_dn8)
-    return int(max(otsu, floor)), int(otsu)
+    return int(max(otsu, floor)), int(otsu), median
 
 
 def reference_pipeline(
@@ -65,24 +65,49 @@ def reference_pipeline(
     law: str = "sqrt",
     k_sigma: float = 5.0,
     margin_dn8: int = 3,
+    plume_min_area_px: int = 50,
+    plume_faint_fraction: float = 0.4,
     threshold_dn8: int | None = None,
 ) -> ReferenceResult:
-    """Run the OpenCV pipeline on a raw frame; threshold_dn8 forces the threshold instead of computing it."""
+    """Run the OpenCV pipeline on a raw frame; threshold_dn8 forces the threshold instead of computing it.
+
+    Blobs of at least plume_min_area_px whose pixels are more than plume_faint_fraction below half their
+    95th-percentile level above background are replaced by the components above their own Otsu threshold.
+    """
     binned = reference_binned(frame, size_px)
     image8 = reference_8bit(binned, bit_depth, law)
-    thr, otsu = reference_threshold(image8, k_sigma, margin_dn8)
+    thr, otsu, median = reference_threshold(image8, k_sigma, margin_dn8)
     if threshold_dn8 is not None:
         thr = threshold_dn8
     _, mask = cv2.threshold(image8, thr, 255, cv2.THRESH_BINARY)
-    _, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    _, labels, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    areas = [stats[1:, cv2.CC_STAT_AREA]]
+    cents = [centroids[1:]]
+    boxes = [stats[1:, :4]]
+    keep = np.ones(len(stats) - 1, dtype=bool)
+    for k in np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= plume_min_area_px) + 1:
+        inside = labels == k
+        values = image8[inside]
+        above = np.sort(values.astype(np.int64) - median)
+        level = above[(95 * (above.size - 1)) // 100]
+        if np.count_nonzero(2 * above < level) <= plume_faint_fraction * above.size:
+            continue
+        core_t, _ = cv2.threshold(values.reshape(1, -1), 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+        core = (inside & (image8 > core_t)).astype(np.uint8)
+        _, _, s2, c2 = cv2.connectedComponentsWithStats(core, connectivity=8)
+        areas.append(s2[1:, cv2.CC_STAT_AREA])
+        cents.append(c2[1:])
+        boxes.append(s2[1:, :4])
+        keep[k - 1] = False
+    areas[0], cents[0], boxes[0] = areas[0][keep], cents[0][keep], boxes[0][keep]
     return ReferenceResult(
         binned=binned,
         image8=image8,
         otsu_dn8=otsu,
         threshold_dn8=thr,
-        areas=stats[1:, cv2.CC_STAT_AREA].astype(np.int64),
-        centroids=centroids[1:],
-        bboxes=stats[1:, :4].astype(np.int64),
+        areas=np.concatenate(areas).astype(np.int64),
+        centroids=np.concatenate(cents),
+        bboxes=np.concatenate(boxes).astype(np.int64),
     )
 
 
