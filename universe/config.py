@@ -300,7 +300,11 @@ class FaultConfig(Frozen):
     start_s: float = Field(description="true start time, s after the epoch")
     end_s: float = Field(description="true end time, s after the epoch")
     wheel: int | None = Field(None, ge=0, description="wheel index, for wheel faults")
-    magnitude: float | None = Field(None, description="size of the fault in the unit of its kind")
+    magnitude: float | None = Field(
+        None,
+        description="size of the fault in the unit of its kind: gyro_bias_step, deg/s added on every axis; "
+        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s",
+    )
 
     @field_validator("end_s")
     @classmethod

@@ -1,0 +1,857 @@
+"""The universe's narrow-angle camera: renders 12-bit frames from the true geometry and attitude.
+
+Model, in the order the light goes through it:
+
+- Pinhole camera: ``fov_deg`` across the full width, square pixels, principal point at the frame centre
+  ``((W-1)/2, (H-1)/2)``, boresight ``CameraConfig.boresight_body`` (body +Z by default); image columns increase
+  along camera +X (body +X by default), rows along camera +Y.
+- Bodies: star-shaped irregular surfaces (``universe.shapes``) ray-cast per pixel, only inside the bounding box of
+  each body's projected bounding sphere. The ray/surface intersection is a fixed-point iteration on the radius
+  looked up (bilinear, OpenCV ``remap``) in a per-frame table of radius and normal over the stereographic
+  projection of the directions seen from the camera, so each iteration costs a few array operations per pixel.
+  Bodies whose boxes overlap are composited by depth (occultation); cast shadows are not modelled.
+- Photometry: lunar-Lambert law (McEwen 1991) ``L * 2 mu0 / (mu0 + mu) + (1 - L) * mu0``, a Lommel-Seeliger
+  (single scattering, right for dark regolith: uniform disc at zero phase, sharp terminator) plus a Lambert part
+  weighted by ``lommel_seeliger_weight``, times a linear-magnitude phase darkening ``10^(-0.4 * slope * alpha)``.
+- Plume: optically thin-to-thick dust cone from the plume body after the impact (``PlumeConfig``), line-of-sight
+  integrated on a coarse grid (it is diffuse) and resampled; it is added on top of the bodies (its part behind a
+  body is not hidden).
+- Stars: a seeded all-sky catalogue (uniform directions, counts ``N(<m) = 4800 * 10^(0.46 (m - 6))`` over the sky,
+  generated lazily per cell of a cube-sphere tiling) and/or an explicit ``StarCatalogue``; stars behind a body are
+  hidden.
+- Optics and motion: Gaussian PSF of ``psf_sigma_px`` convolved with a line of the image motion during the exposure
+  (body rate for everything, plus the translation of each body's line of sight when ``camera_velocity_m_s`` is
+  given); the scene geometry is that of mid-exposure. The roll component of the smear (rotation about the
+  boresight) is evaluated at each star's and each body's position, not across an extended body.
+- Detector: signal electrons plus dark current; noise is Gaussian with the Poisson variance (signal + dark) plus
+  read noise, digitised with the gain and dark offset, rounded and clipped to the bit depth; hot pixels at fixed
+  seeded positions. Standard normal deviates come from inverse-CDF sampling of independent 16-bit uniforms per
+  pixel and per frame (65536 normal quantiles, tails clipped at +-4.3 sigma): about 5x faster than
+  ``Generator.standard_normal`` and distributed the same within that resolution.
+- Faults: ``saturated`` gives a frame at full scale; ``blank`` gives a dark frame (no light from the scene:
+  bias, dark current, read noise and hot pixels only).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import cv2
+import numpy as np
+from scipy.spatial.transform import Rotation
+from scipy.special import erf, ndtri
+
+from universe.config import CameraConfig, PlumeConfig
+from universe.shapes import ShapeModel
+
+
+class RenderError(ValueError):
+    """A scene or camera parameter makes the frame impossible to render; the message names the field."""
+
+
+def _vec3(name: str, v: object) -> np.ndarray:
+    a = np.asarray(v, dtype=np.float64)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise RenderError(f"{name} must be a finite 3-vector, got {v!r}")
+    return a
+
+
+def _unit3(name: str, v: object) -> np.ndarray:
+    a = _vec3(name, v)
+    n = float(np.linalg.norm(a))
+    if n < 1e-12:
+        raise RenderError(f"{name} must be a non-zero vector, got {v!r}")
+    return a / n
+
+
+def _quat(name: str, q: object) -> np.ndarray:
+    a = np.asarray(q, dtype=np.float64)
+    if a.shape != (4,) or not np.all(np.isfinite(a)) or np.linalg.norm(a) < 1e-12:
+        raise RenderError(f"{name} must be a non-zero finite quaternion [x, y, z, w], got {q!r}")
+    return a / np.linalg.norm(a)
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One asteroid: centre (inertial, m), mean radius (m), shape, orientation (body -> inertial, [x, y, z, w])."""
+
+    centre_inertial_m: np.ndarray
+    radius_m: float
+    shape: ShapeModel = ShapeModel()
+    q_body_to_inertial: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
+    reflectance_factor: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "centre_inertial_m", _vec3("Body.centre_inertial_m", self.centre_inertial_m))
+        object.__setattr__(self, "q_body_to_inertial", _quat("Body.q_body_to_inertial", self.q_body_to_inertial))
+        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
+            raise RenderError(f"Body.radius_m must be a positive number, got {self.radius_m!r}")
+        if not (math.isfinite(self.reflectance_factor) and self.reflectance_factor >= 0):
+            raise RenderError(f"Body.reflectance_factor must be >= 0, got {self.reflectance_factor!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class StarCatalogue:
+    """Explicit stars: unit directions (N, 3) in the inertial frame and visual magnitudes (N,)."""
+
+    directions_inertial: np.ndarray
+    magnitudes: np.ndarray
+
+    def __post_init__(self) -> None:
+        d = np.asarray(self.directions_inertial, dtype=np.float64).reshape(-1, 3)
+        m = np.asarray(self.magnitudes, dtype=np.float64).reshape(-1)
+        if len(d) != len(m):
+            raise RenderError(f"StarCatalogue: {len(d)} directions but {len(m)} magnitudes")
+        n = np.linalg.norm(d, axis=1)
+        if np.any(n < 1e-12) or not np.all(np.isfinite(d)) or not np.all(np.isfinite(m)):
+            raise RenderError("StarCatalogue.directions_inertial must be finite non-zero vectors, magnitudes finite")
+        object.__setattr__(self, "directions_inertial", d / n[:, None])
+        object.__setattr__(self, "magnitudes", m)
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Everything one frame depends on, at mid-exposure; all vectors inertial unless named otherwise.
+
+    ``camera_velocity_m_s`` is the camera's velocity relative to the bodies (smears them, not the stars);
+    ``plume_body_index`` names the body the ejecta leave from (None: no plume); ``star_seed`` selects the seeded
+    all-sky star field (None: none), ``star_catalogue`` adds explicit stars.
+    """
+
+    camera_position_m: np.ndarray
+    q_body_to_inertial: np.ndarray
+    body_rate_rad_s: np.ndarray
+    exposure_s: float
+    bodies: tuple[Body, ...]
+    sun_direction: np.ndarray
+    time_since_impact_s: float | None = None
+    star_seed: int | None = None
+    star_catalogue: StarCatalogue | None = None
+    blank: bool = False
+    saturated: bool = False
+    camera_velocity_m_s: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    plume_body_index: int | None = None
+    plume_brightness_factor: float = 1.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "camera_position_m", _vec3("Scene.camera_position_m", self.camera_position_m))
+        object.__setattr__(self, "q_body_to_inertial", _quat("Scene.q_body_to_inertial", self.q_body_to_inertial))
+        object.__setattr__(self, "body_rate_rad_s", _vec3("Scene.body_rate_rad_s", self.body_rate_rad_s))
+        object.__setattr__(self, "sun_direction", _unit3("Scene.sun_direction", self.sun_direction))
+        object.__setattr__(self, "camera_velocity_m_s", _vec3("Scene.camera_velocity_m_s", self.camera_velocity_m_s))
+        object.__setattr__(self, "bodies", tuple(self.bodies))
+        if not (math.isfinite(self.exposure_s) and self.exposure_s > 0):
+            raise RenderError(f"Scene.exposure_s must be a positive number of seconds, got {self.exposure_s!r}")
+        for i, b in enumerate(self.bodies):
+            if not isinstance(b, Body):
+                raise RenderError(f"Scene.bodies[{i}] must be a Body, got {type(b).__name__}")
+        if self.plume_body_index is not None and not 0 <= self.plume_body_index < len(self.bodies):
+            raise RenderError(
+                f"Scene.plume_body_index {self.plume_body_index} is not an index of the {len(self.bodies)} bodies"
+            )
+        if not (math.isfinite(self.plume_brightness_factor) and self.plume_brightness_factor >= 0):
+            raise RenderError(f"Scene.plume_brightness_factor must be >= 0, got {self.plume_brightness_factor!r}")
+        if self.time_since_impact_s is not None and not math.isfinite(self.time_since_impact_s):
+            raise RenderError(f"Scene.time_since_impact_s must be finite or None, got {self.time_since_impact_s!r}")
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Pinhole geometry
+
+
+def focal_length_px(cfg: CameraConfig) -> float:
+    """Focal length in pixels: ``fov_deg`` spans the full frame width."""
+    return 0.5 * cfg.resolution_px / math.tan(math.radians(cfg.fov_deg) / 2.0)
+
+
+def principal_point_px(cfg: CameraConfig) -> tuple[float, float]:
+    """(col, row) of the principal point: the frame centre."""
+    c = (cfg.resolution_px - 1) / 2.0
+    return c, c
+
+
+@lru_cache(maxsize=64)
+def _camera_to_body(boresight: tuple[float, float, float]) -> np.ndarray:
+    b = np.asarray(boresight, dtype=np.float64)
+    b = b / np.linalg.norm(b)
+    if np.allclose(b, [0.0, 0.0, 1.0]):
+        return np.eye(3)
+    if np.allclose(b, [0.0, 0.0, -1.0]):
+        return Rotation.from_rotvec([np.pi, 0.0, 0.0]).as_matrix()
+    # minimal rotation taking camera +Z onto the boresight
+    axis = np.cross([0.0, 0.0, 1.0], b)
+    angle = math.atan2(float(np.linalg.norm(axis)), float(b[2]))
+    return Rotation.from_rotvec(axis / np.linalg.norm(axis) * angle).as_matrix()
+
+
+def camera_to_inertial_matrix(scene: Scene, cfg: CameraConfig) -> np.ndarray:
+    """3x3 matrix taking camera-frame vectors to the inertial frame."""
+    return Rotation.from_quat(scene.q_body_to_inertial).as_matrix() @ _camera_to_body(tuple(cfg.boresight_body))
+
+
+def project_inertial(scene: Scene, cfg: CameraConfig, point_inertial: np.ndarray) -> tuple:
+    """Pinhole (col, row) of inertial point(s) (3,) or (N, 3) in metres; NaN for points behind the camera."""
+    p = np.asarray(point_inertial, dtype=np.float64)
+    if p.shape[-1:] != (3,):
+        raise RenderError(f"project_inertial: point_inertial must have shape (3,) or (N, 3), got {p.shape}")
+    v = (p - scene.camera_position_m) @ camera_to_inertial_matrix(scene, cfg)  # rows: camera-frame vectors
+    f = focal_length_px(cfg)
+    cx, cy = principal_point_px(cfg)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(v[..., 2] > 0, v[..., 2], np.nan)
+        col = cx + f * v[..., 0] / z
+        row = cy + f * v[..., 1] / z
+    if p.ndim == 1:
+        return float(col), float(row)
+    return col, row
+
+
+def _image_velocity_px_s(v_c: np.ndarray, dv_c: np.ndarray, f: float) -> np.ndarray:
+    """Image-plane velocity (dcol/dt, drow/dt) of camera-frame vectors ``v_c`` moving at ``dv_c`` (..., 3)."""
+    z = v_c[..., 2]
+    return np.stack(
+        [
+            f * (dv_c[..., 0] * z - v_c[..., 0] * dv_c[..., 2]) / (z * z),
+            f * (dv_c[..., 1] * z - v_c[..., 1] * dv_c[..., 2]) / (z * z),
+        ],
+        axis=-1,
+    )
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Point-spread function with motion smear
+
+
+def smeared_psf(dx: np.ndarray, dy: np.ndarray, sigma_px: float, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
+    """Unit-integral Gaussian PSF (sigma) convolved with a centred line segment (lx, ly) px, at offsets (dx, dy).
+
+    Closed form: Gaussian across the segment times a difference of error functions along it.
+    ``lx, ly`` broadcast against ``dx, dy`` (one segment per star, for instance).
+    """
+    length = np.hypot(lx, ly)
+    safe = np.maximum(length, 1e-9)
+    ex, ey = lx / safe, ly / safe
+    s = dx * ex + dy * ey
+    p = -dx * ey + dy * ex
+    two_s2 = 2.0 * sigma_px * sigma_px
+    point = np.exp(-(dx * dx + dy * dy) / two_s2) / (np.pi * two_s2)
+    k = 1.0 / (math.sqrt(2.0) * sigma_px)
+    line = (
+        np.exp(-p * p / two_s2)
+        / (math.sqrt(2.0 * np.pi) * sigma_px)
+        * 0.5
+        * (erf((s + 0.5 * length) * k) - erf((s - 0.5 * length) * k))
+        / safe
+    )
+    return np.where(length > 1e-3, line, point)
+
+
+def psf_half_size_px(sigma_px: float, smear_px: float) -> int:
+    """Half-size of a kernel holding the PSF and its smear: 4 sigma beyond half the smear length."""
+    return int(math.ceil(4.0 * sigma_px + 0.5 * smear_px)) + 1
+
+
+def psf_kernel(sigma_px: float, smear_px: tuple[float, float]) -> np.ndarray:
+    """Odd square float32 kernel of the smeared PSF, centred, summing to 1."""
+    h = psf_half_size_px(sigma_px, math.hypot(*smear_px))
+    o = np.arange(-h, h + 1, dtype=np.float64)
+    k = smeared_psf(o[None, :], o[:, None], sigma_px, np.float64(smear_px[0]), np.float64(smear_px[1]))
+    return (k / k.sum()).astype(np.float32)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Bodies
+
+
+_TABLE_N = 128  # radius/normal table side; 1.4 deg per cell at the limb, finer than the smallest 12 deg bump
+_TABLE_S = 1.5  # stereographic half-extent: directions up to 112 deg from the camera direction
+_RAY_ITERATIONS = 3  # safeguarded Newton steps of the ray/surface intersection (quadratic convergence)
+_REMAP_COLS = 1024  # cv2.remap maps must stay below 32767 per side: 1-D data is folded into rows of this length
+
+
+def _remap_points(table: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarray:
+    """Bilinear look-up of a (N, N, C) float32 table at 1-D float32 table coordinates: returns (n, C)."""
+    n = mx.size
+    if n == 0:
+        return np.empty((0, table.shape[2]), dtype=table.dtype)
+    rows = -(-n // _REMAP_COLS)
+    pad = rows * _REMAP_COLS - n
+    mxp = np.pad(mx, (0, pad)).reshape(rows, _REMAP_COLS)
+    myp = np.pad(my, (0, pad)).reshape(rows, _REMAP_COLS)
+    out = cv2.remap(table, mxp, myp, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out.reshape(rows * _REMAP_COLS, table.shape[2])[:n]
+
+
+def _view_basis(e3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(helper, e3)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(e3, e1)
+
+
+@lru_cache(maxsize=4)
+def _stereo_directions() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """View-frame unit directions (N, N) of the stereographic table nodes (columns: s1, rows: s2)."""
+    g = np.linspace(-_TABLE_S, _TABLE_S, _TABLE_N)
+    s1, s2 = np.meshgrid(g, g)
+    rho2 = s1 * s1 + s2 * s2
+    out = (2.0 * s1 / (1.0 + rho2), 2.0 * s2 / (1.0 + rho2), (1.0 - rho2) / (1.0 + rho2))
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def _shape_table(body: Body, view_to_ast: np.ndarray) -> np.ndarray:
+    """(N, N, 4) float32 table of radius (m) and view-frame normal over stereographic view coordinates."""
+    v1, v2, v3 = _stereo_directions()
+    m = view_to_ast
+    ast = body.shape.lookup(
+        m[0, 0] * v1 + m[0, 1] * v2 + m[0, 2] * v3,
+        m[1, 0] * v1 + m[1, 1] * v2 + m[1, 2] * v3,
+        m[2, 0] * v1 + m[2, 1] * v2 + m[2, 2] * v3,
+    )
+    a2v = view_to_ast.T  # body frame -> view frame
+    table = np.empty((_TABLE_N, _TABLE_N, 4), dtype=np.float32)
+    table[..., 0] = ast[..., 0] * np.float32(body.radius_m)
+    n1, n2, n3 = ast[..., 1], ast[..., 2], ast[..., 3]
+    for k in range(3):
+        table[..., 1 + k] = a2v[k, 0] * n1 + a2v[k, 1] * n2 + a2v[k, 2] * n3
+    return table
+
+
+def _phase_factor(cfg: CameraConfig, cos_alpha: float) -> float:
+    alpha_deg = math.degrees(math.acos(max(-1.0, min(1.0, cos_alpha))))
+    return 10.0 ** (-0.4 * cfg.phase_slope_mag_deg * alpha_deg)
+
+
+@dataclass
+class _BodyView:
+    """A body as seen in this frame: camera-frame geometry and its pixel box (r0, r1, c0, c1), end-exclusive."""
+
+    index: int
+    body: Body
+    centre_c: np.ndarray
+    r_max_m: float
+    box: tuple[int, int, int, int]
+    smear_px: tuple[float, float]
+
+
+def _body_box(
+    centre_c: np.ndarray, r_max: float, f: float, cx: float, cy: float, size: int, margin: int
+) -> tuple[int, int, int, int] | None:
+    """Pixel box of the projected bounding sphere within the frame grown by ``margin``; None if out of view."""
+    dist = float(np.linalg.norm(centre_c))
+    if dist <= r_max:
+        raise RenderError(f"camera is inside a body's bounding sphere (range {dist:.1f} m <= {r_max:.1f} m)")
+    c = centre_c / dist
+    beta = math.asin(r_max / dist)
+    e1, e2 = _view_basis(c)
+    th = np.linspace(0.0, 2.0 * np.pi, 64, endpoint=False)
+    rim = c * math.cos(beta) + (np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2) * math.sin(beta)
+    if np.all(rim[:, 2] <= 0) and c[2] <= 0:
+        return None
+    lo, hi = -margin, size + margin
+    if np.any(rim[:, 2] <= 1e-9):
+        box = (lo, hi, lo, hi)
+    else:
+        col = cx + f * rim[:, 0] / rim[:, 2]
+        row = cy + f * rim[:, 1] / rim[:, 2]
+        box = (
+            max(lo, int(math.floor(row.min())) - 2),
+            min(hi, int(math.ceil(row.max())) + 3),
+            max(lo, int(math.floor(col.min())) - 2),
+            min(hi, int(math.ceil(col.max())) + 3),
+        )
+    if box[0] >= box[1] or box[2] >= box[3]:
+        return None
+    return box
+
+
+def _cast_body(
+    view: _BodyView,
+    c2i: np.ndarray,
+    sun_c: np.ndarray,
+    cfg: CameraConfig,
+    f: float,
+    cx: float,
+    cy: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray-cast one body over its box: flat pixel indices within the box, depth (m) and signal (e-/s) of hits."""
+    r0, r1, c0, c1 = view.box
+    w = c1 - c0
+    body = view.body
+    p = -view.centre_c  # camera relative to the body centre, camera frame
+    dist = float(np.linalg.norm(p))
+    dxs = (np.arange(c0, c1, dtype=np.float64) - cx) / f
+    dys = (np.arange(r0, r1, dtype=np.float64) - cy) / f
+    dx = np.broadcast_to(dxs[None, :], (r1 - r0, w)).ravel()
+    dy = np.broadcast_to(dys[:, None], (r1 - r0, w)).ravel()
+    inv = 1.0 / np.sqrt(dx * dx + dy * dy + 1.0)
+    # squared miss distance of each ray from the centre, |p x d|^2, free of cancellation
+    k1 = p[1] - p[2] * dy
+    k2 = p[2] * dx - p[0]
+    k3 = p[0] * dy - p[1] * dx
+    b2 = (k1 * k1 + k2 * k2 + k3 * k3) * (inv * inv)
+    idx = np.flatnonzero(b2 < view.r_max_m**2)
+    if idx.size == 0:
+        return idx, np.empty(0), np.empty(0)
+    b2 = b2[idx]
+    inv = inv[idx]
+    d0, d1, d2 = dx[idx] * inv, dy[idx] * inv, inv
+    t_c = -(p[0] * d0 + p[1] * d1 + p[2] * d2)
+
+    e3 = p / dist
+    e1, e2 = _view_basis(e3)
+    view_to_cam = np.stack([e1, e2, e3], axis=1)
+    view_to_ast = Rotation.from_quat(body.q_body_to_inertial).as_matrix().T @ c2i @ view_to_cam
+    table = _shape_table(body, view_to_ast)
+    # ray direction and closest point in view coordinates (p is along e3), float32 from here on
+    de1 = (e1[0] * d0 + e1[1] * d1 + e1[2] * d2).astype(np.float32)
+    de2 = (e2[0] * d0 + e2[1] * d1 + e2[2] * d2).astype(np.float32)
+    de3 = (e3[0] * d0 + e3[1] * d1 + e3[2] * d2).astype(np.float32)
+    qe1 = (t_c * de1).astype(np.float32)
+    qe2 = (t_c * de2).astype(np.float32)
+    qe3 = (dist + t_c * de3).astype(np.float32)
+    b2f = b2.astype(np.float32)
+    r_min = np.float32(body.radius_m * body.shape.min_radius())
+    r_max = np.float32(view.r_max_m)
+    scale = np.float32((_TABLE_N - 1) / (2.0 * _TABLE_S))
+    off = np.float32(_TABLE_S)
+
+    def surface(sel: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
+        """g = |x| - r(u), dg/dh and the unit normal at the point h before the closest point of rays ``sel``."""
+        a1, a2, a3 = de1[sel], de2[sel], de3[sel]
+        x1, x2, x3 = qe1[sel] - h * a1, qe2[sel] - h * a2, qe3[sel] - h * a3
+        qn = np.sqrt(b2f[sel] + h * h)
+        den = np.maximum(qn + x3, np.float32(1e-3) * qn)
+        look = _remap_points(table, (x1 / den + off) * scale, (x2 / den + off) * scale)
+        r, n1, n2, n3 = look[:, 0], look[:, 1], look[:, 2], look[:, 3]
+        inv_n = 1.0 / np.sqrt(n1 * n1 + n2 * n2 + n3 * n3)
+        n1, n2, n3 = n1 * inv_n, n2 * inv_n, n3 * inv_n
+        inv_q = 1.0 / qn
+        nu = np.maximum((n1 * x1 + n2 * x2 + n3 * x3) * inv_q, np.float32(1e-3))
+        ud = (x1 * a1 + x2 * a2 + x3 * a3) * inv_q
+        nd = n1 * a1 + n2 * a2 + n3 * a3
+        # r(u) along the ray: its tangential gradient is r (u - n / (n.u)), and du/dh = -(d - (u.d) u) / |x|
+        slope = (h + r * (ud - nd / nu)) * inv_q
+        return qn - r, slope, n1, n2, n3
+
+    # silhouette: inside the smallest radius, or below the surface at the ray's closest point to the centre
+    inner = b2f < r_min * r_min
+    outer = np.flatnonzero(~inner)
+    g0 = surface(outer, np.zeros(outer.size, dtype=np.float32))[0]
+    hit = inner.copy()
+    hit[outer[g0 <= 0]] = True
+    sel = np.flatnonzero(hit)
+    lo = np.sqrt(np.maximum(r_min * r_min - b2f[sel], np.float32(0.0)))
+    hi = np.sqrt(np.maximum(r_max * r_max - b2f[sel], np.float32(0.0)))
+    h = hi.copy()
+    n1 = n2 = n3 = np.empty(0, dtype=np.float32)
+    # safeguarded Newton from outside the body inward: g >= 0 at hi, g <= 0 at lo
+    for _ in range(_RAY_ITERATIONS):
+        g, slope, n1, n2, n3 = surface(sel, h)
+        outside = g > 0
+        hi = np.where(outside, h, hi)
+        lo = np.where(outside, lo, h)
+        step = h - g / np.where(slope > 1e-6, slope, np.float32(1e-6))
+        h = np.where((step > lo) & (step < hi), step, np.float32(0.5) * (lo + hi)).astype(np.float32)
+    g, slope, n1, n2, n3 = surface(sel, h)
+    depth = t_c[sel] - h
+    sun_v = view_to_cam.T @ sun_c
+    mu0 = n1 * np.float32(sun_v[0]) + n2 * np.float32(sun_v[1]) + n3 * np.float32(sun_v[2])
+    mu = np.maximum(-(n1 * de1[sel] + n2 * de2[sel] + n3 * de3[sel]), np.float32(0.0))
+    lit = mu0 > 0
+    mu0 = np.where(lit, mu0, np.float32(0.0))
+    wls = np.float32(cfg.lommel_seeliger_weight)
+    law = np.where(lit, wls * 2 * mu0 / np.maximum(mu0 + mu, np.float32(1e-12)) + (1 - wls) * mu0, np.float32(0.0))
+    cos_alpha = float(sun_c @ e3)
+    signal = np.float32(cfg.body_signal_e_s * body.reflectance_factor * _phase_factor(cfg, cos_alpha)) * law
+    return idx[sel], depth, signal
+
+
+@dataclass
+class _Cluster:
+    box: tuple[int, int, int, int]
+    members: list[_BodyView]
+
+
+def _clusters(views: list[_BodyView]) -> list[_Cluster]:
+    """Group bodies whose cast boxes overlap (they must be composited by depth)."""
+    out: list[_Cluster] = []
+    for v in sorted(views, key=lambda v: -(v.box[1] - v.box[0]) * (v.box[3] - v.box[2])):
+        merged = _Cluster(v.box, [v])
+        changed = True
+        while changed:
+            changed = False
+            for c in out:
+                a, b = c.box, merged.box
+                if a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3]:
+                    out.remove(c)
+                    merged = _Cluster(
+                        (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]), max(a[3], b[3])), c.members + merged.members
+                    )
+                    changed = True
+                    break
+        out.append(merged)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Stars
+
+_SKY_CELLS_PER_FACE = 32
+_STARS_BRIGHTER_THAN_6 = 4800.0  # whole-sky count of stars brighter than V = 6 (Allen's Astrophysical Quantities)
+_STAR_COUNT_SLOPE = 0.46  # d log10 N / d m for V ~ 6-10 (Allen's Astrophysical Quantities)
+
+
+def _cube_cell(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Face (0-5), i, j of the cube-sphere cell holding each unit vector (n, 3)."""
+    ax = np.argmax(np.abs(v), axis=1)
+    rows = np.arange(len(v))
+    major = v[rows, ax]
+    face = ax * 2 + (major < 0)
+    a1 = (ax + 1) % 3
+    a2 = (ax + 2) % 3
+    u = v[rows, a1] / np.abs(major)
+    w = v[rows, a2] / np.abs(major)
+    k = _SKY_CELLS_PER_FACE
+    i = np.clip(((u + 1.0) * 0.5 * k).astype(int), 0, k - 1)
+    j = np.clip(((w + 1.0) * 0.5 * k).astype(int), 0, k - 1)
+    return face, i, j
+
+
+@lru_cache(maxsize=4096)
+def _cell_stars(seed: int, face: int, i: int, j: int, limiting_mag: float) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded stars of one cube-sphere cell: inertial unit directions (n, 3) and magnitudes (n,)."""
+    k = _SKY_CELLS_PER_FACE
+    u0, u1 = -1.0 + 2.0 * i / k, -1.0 + 2.0 * (i + 1) / k
+    w0, w1 = -1.0 + 2.0 * j / k, -1.0 + 2.0 * (j + 1) / k
+
+    def corner(u: float, w: float) -> float:
+        return math.atan(u * w / math.sqrt(1.0 + u * u + w * w))
+
+    solid_angle = corner(u1, w1) - corner(u0, w1) - corner(u1, w0) + corner(u0, w0)
+    per_sr = _STARS_BRIGHTER_THAN_6 * 10.0 ** (_STAR_COUNT_SLOPE * (limiting_mag - 6.0)) / (4.0 * math.pi)
+    rng = np.random.default_rng([seed, face, i, j])
+    n = int(rng.poisson(per_sr * solid_angle))
+    # uniform in the face coordinates: the density varies by < 1 % across a cell
+    u = rng.uniform(u0, u1, n)
+    w = rng.uniform(w0, w1, n)
+    ax = face // 2
+    v = np.empty((n, 3))
+    v[:, ax] = -1.0 if face % 2 else 1.0
+    v[:, (ax + 1) % 3] = u
+    v[:, (ax + 2) % 3] = w
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    mags = limiting_mag + np.log10(1.0 - rng.uniform(0.0, 1.0, n)) / _STAR_COUNT_SLOPE
+    v.setflags(write=False)
+    mags.setflags(write=False)
+    return v, mags
+
+
+def sky_stars(seed: int, c2i: np.ndarray, cfg: CameraConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded all-sky stars near the field of view: inertial unit directions (n, 3) and magnitudes (n,)."""
+    half = math.radians(cfg.fov_deg) / 2.0 + math.radians(3.5)  # field plus one cell at its widest
+    g = np.tan(np.linspace(-half, half, int(math.degrees(2 * half) / 0.3) + 2))
+    gx, gy = np.meshgrid(g, g)
+    probe = np.stack([gx.ravel(), gy.ravel(), np.ones(gx.size)], axis=1) @ c2i.T
+    probe /= np.linalg.norm(probe, axis=1, keepdims=True)
+    cells = set(zip(*(a.tolist() for a in _cube_cell(probe))))
+    dirs, mags = [], []
+    for face, i, j in sorted(cells):
+        d, m = _cell_stars(seed, face, i, j, cfg.star_limiting_mag)
+        dirs.append(d)
+        mags.append(m)
+    if not dirs:
+        return np.empty((0, 3)), np.empty(0)
+    return np.concatenate(dirs), np.concatenate(mags)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Plume
+
+_PLUME_GRID = 48  # coarse nodes per side: the plume is diffuse
+_PLUME_STEPS = 24  # line-of-sight samples, uniform in the angle seen from the source (exact for the 1/r^2 law)
+
+
+def plume_cross_section_m2(plume: PlumeConfig, t_s: float) -> float:
+    """Total ejecta cross-section at ``t_s`` after the impact: A (1 - exp(-t/rise)) exp(-t/fade), m^2."""
+    if t_s <= 0:
+        return 0.0
+    return plume.cross_section_m2 * (1.0 - math.exp(-t_s / plume.rise_time_s)) * math.exp(-t_s / plume.fade_time_s)
+
+
+def _plume_signal(
+    scene: Scene, cfg: CameraConfig, plume: PlumeConfig, c2i: np.ndarray, f: float, cx: float, cy: float
+) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+    """Plume signal (e-/s per pixel) over its clipped pixel box, or None if there is none in view."""
+    t = scene.time_since_impact_s
+    if not plume.enabled or t is None or t <= 0 or scene.plume_body_index is None:
+        return None
+    src = scene.bodies[scene.plume_body_index]
+    big_r = plume.speed_m_s * t
+    if big_r <= src.radius_m:
+        return None  # still within the source body
+    area = plume_cross_section_m2(plume, t) * scene.plume_brightness_factor
+    if area <= 0:
+        return None
+    size = cfg.resolution_px
+    centre_c = c2i.T @ (src.centre_inertial_m - scene.camera_position_m)
+    if float(np.linalg.norm(centre_c)) <= big_r:
+        box = (0, size, 0, size)  # the camera is inside the plume
+    else:
+        b = _body_box(centre_c, big_r, f, cx, cy, size, 0)
+        if b is None:
+            return None
+        box = b
+    r0, r1, c0, c1 = box
+    h, w = r1 - r0, c1 - c0
+    gh, gw = min(_PLUME_GRID, h), min(_PLUME_GRID, w)
+    # node positions matching cv2.resize's pixel-centre convention
+    cols = c0 + (np.arange(gw) + 0.5) * (w / gw) - 0.5
+    rows = r0 + (np.arange(gh) + 0.5) * (h / gh) - 0.5
+    dx, dy = np.meshgrid((cols - cx) / f, (rows - cy) / f)
+    d = np.stack([dx, dy, np.ones_like(dx)], axis=-1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    p = -centre_c
+    t_c = -(d @ p)
+    q_c = p + t_c[..., None] * d
+    b = np.linalg.norm(q_c, axis=-1)
+    b_eff = np.maximum(b, 0.5 * src.radius_m)
+    phi_max = np.arctan(np.sqrt(np.maximum(big_r * big_r - b * b, 0.0)) / b_eff)
+    frac = (np.arange(_PLUME_STEPS) + 0.5) / _PLUME_STEPS * 2.0 - 1.0
+    phi = frac[:, None, None] * phi_max[None]  # (steps, gh, gw)
+    ell = b_eff[None] * np.tan(phi)
+    x = q_c[None] + ell[..., None] * d[None]
+    rr = np.linalg.norm(x, axis=-1)
+    axis_c = c2i.T @ _unit3("PlumeConfig.axis_inertial", plume.axis_inertial)
+    cos_ang = (x @ axis_c) / np.maximum(rr, 1e-9)
+    # soft cone edge, 3 deg wide, so the fan has no aliased border
+    edge = np.clip((cos_ang - math.cos(math.radians(plume.half_angle_deg + 1.5))) / (
+        math.cos(math.radians(plume.half_angle_deg - 1.5)) - math.cos(math.radians(plume.half_angle_deg + 1.5))
+    ), 0.0, 1.0)
+    inside = edge * (rr >= src.radius_m)
+    omega = 2.0 * math.pi * (1.0 - math.cos(math.radians(plume.half_angle_deg)))
+    dphi = 2.0 * phi_max / _PLUME_STEPS
+    tau = area / (omega * big_r) * inside.sum(axis=0) * dphi / b_eff
+    sun_c = c2i.T @ scene.sun_direction
+    cos_alpha = float(sun_c @ (p / np.linalg.norm(p)))
+    coarse = (cfg.body_signal_e_s * plume.reflectance_factor * _phase_factor(cfg, cos_alpha)) * (-np.expm1(-tau))
+    fine = cv2.resize(coarse.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    return box, fine
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Detector
+
+
+NORMAL_QUANTILES = ndtri((np.arange(65536, dtype=np.float64) + 0.5) / 65536.0).astype(np.float32)
+
+
+def normal_codes(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """Independent uniform 16-bit codes; ``NORMAL_QUANTILES[codes]`` are standard normal deviates (inverse CDF)."""
+    n = int(np.prod(shape))
+    return np.frombuffer(rng.bytes(2 * n), dtype="<u2").reshape(shape)
+
+
+@lru_cache(maxsize=64)
+def _dark_dn_table(offset_dn: float, mean_dn: float, sigma_dn: float, max_dn: int) -> np.ndarray:
+    """DN of a pixel without scene signal for each of the 65536 normal codes."""
+    dn = np.rint(offset_dn + mean_dn + sigma_dn * NORMAL_QUANTILES.astype(np.float64))
+    table = np.clip(dn, 0, max_dn).astype(np.uint16)
+    table.setflags(write=False)
+    return table
+
+
+@lru_cache(maxsize=16)
+def hot_pixels(seed: int, count: int, size: int, signal_e: float) -> tuple[np.ndarray, np.ndarray]:
+    """Fixed hot pixels of a ``size`` x ``size`` sensor: flat indices and excess electrons per frame."""
+    rng = np.random.default_rng(seed)
+    idx = rng.choice(size * size, size=min(count, size * size), replace=False)
+    level = signal_e * rng.uniform(0.2, 1.0, idx.size)
+    idx.setflags(write=False)
+    level.setflags(write=False)
+    return idx, level
+
+
+def _digitise(
+    signal_e: np.ndarray, codes: np.ndarray, cfg: CameraConfig, dark_e: float, max_dn: int
+) -> np.ndarray:
+    """DN of pixels holding ``signal_e`` scene electrons, with their own normal codes."""
+    s = np.maximum(signal_e.astype(np.float32), 0.0)
+    var = s + np.float32(dark_e + cfg.read_noise_e**2)
+    dn = np.float32(cfg.dark_offset_dn + dark_e / cfg.gain_e_per_dn) + (
+        s + np.sqrt(var) * NORMAL_QUANTILES[codes]
+    ) * np.float32(1.0 / cfg.gain_e_per_dn)
+    return np.clip(np.rint(dn), 0, max_dn).astype(np.uint16)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# The frame
+
+
+def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.random.Generator) -> np.ndarray:
+    """Render one frame: (H, W) uint16 DN within [0, 2^bit_depth - 1]; the noise comes from ``rng``."""
+    size = cfg.resolution_px
+    max_dn = (1 << cfg.bit_depth) - 1
+    if scene.saturated:
+        return np.full((size, size), max_dn, dtype=np.uint16)
+    f = focal_length_px(cfg)
+    cx, cy = principal_point_px(cfg)
+    c2i = camera_to_inertial_matrix(scene, cfg)
+    texp = scene.exposure_s
+    omega_c = c2i.T @ (Rotation.from_quat(scene.q_body_to_inertial).apply(scene.body_rate_rad_s))
+    signal = np.zeros((size, size), dtype=np.float32)  # scene electrons; only touched where light falls
+    boxes: list[tuple[int, int, int, int]] = []
+    occluders: list[tuple[tuple[int, int, int, int], np.ndarray]] = []
+
+    if not scene.blank:
+        sun_c = c2i.T @ scene.sun_direction
+        vel_c = c2i.T @ (-scene.camera_velocity_m_s)
+        views: list[_BodyView] = []
+        for i, body in enumerate(scene.bodies):
+            centre_c = c2i.T @ (body.centre_inertial_m - scene.camera_position_m)
+            dv = -np.cross(omega_c, centre_c) + vel_c
+            smear = _image_velocity_px_s(centre_c, dv, f) * texp if centre_c[2] > 0 else np.zeros(2)
+            margin = psf_half_size_px(cfg.psf_sigma_px, float(np.hypot(*smear)))
+            r_max = body.radius_m * body.shape.max_radius()
+            box = _body_box(centre_c, r_max, f, cx, cy, size, margin)
+            if box is not None:
+                views.append(_BodyView(i, body, centre_c, r_max, box, (float(smear[0]), float(smear[1]))))
+        for cluster in _clusters(views):
+            r0, r1, c0, c1 = cluster.box
+            h, w = r1 - r0, c1 - c0
+            depth = np.full(h * w, np.inf)
+            rad = np.zeros(h * w, dtype=np.float32)
+            for v in cluster.members:
+                vr0, vr1, vc0, vc1 = v.box
+                flat, dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy)
+                rr = flat // (vc1 - vc0) + (vr0 - r0)
+                cc = flat % (vc1 - vc0) + (vc0 - c0)
+                k = rr * w + cc
+                nearer = dep < depth[k]
+                depth[k[nearer]] = dep[nearer]
+                rad[k[nearer]] = sig[nearer]
+            hit = np.isfinite(depth).reshape(h, w)
+            if not hit.any():
+                continue
+            occluders.append((cluster.box, hit))
+            smear = cluster.members[0].smear_px
+            kernel = psf_kernel(cfg.psf_sigma_px, smear)
+            m = kernel.shape[0] // 2
+            cut = np.zeros((h + 2 * m, w + 2 * m), dtype=np.float32)
+            cut[m : m + h, m : m + w] = rad.reshape(h, w) * np.float32(texp)
+            cut = cv2.filter2D(cut, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+            fr0, fr1 = max(0, r0 - m), min(size, r1 + m)
+            fc0, fc1 = max(0, c0 - m), min(size, c1 + m)
+            if fr0 < fr1 and fc0 < fc1:
+                signal[fr0:fr1, fc0:fc1] += cut[fr0 - r0 + m : fr1 - r0 + m, fc0 - c0 + m : fc1 - c0 + m]
+                boxes.append((fr0, fr1, fc0, fc1))
+
+        pl = _plume_signal(scene, cfg, plume, c2i, f, cx, cy)
+        if pl is not None:
+            (pr0, pr1, pc0, pc1), fine = pl
+            signal[pr0:pr1, pc0:pc1] += fine * np.float32(texp)
+            boxes.append((pr0, pr1, pc0, pc1))
+
+        star_flat = _add_stars(scene, cfg, c2i, omega_c, f, cx, cy, signal, occluders)
+    else:
+        star_flat = np.empty(0, dtype=np.int64)
+
+    hot_idx, hot_e = hot_pixels(cfg.hot_pixel_seed, cfg.hot_pixel_count, size, cfg.hot_pixel_signal_e)
+    flat_signal = signal.reshape(-1)
+    flat_signal[hot_idx] += hot_e.astype(np.float32)
+
+    dark_e = cfg.dark_current_e_s * texp
+    codes = normal_codes(rng, (size, size))
+    table = _dark_dn_table(
+        cfg.dark_offset_dn,
+        dark_e / cfg.gain_e_per_dn,
+        math.sqrt(dark_e + cfg.read_noise_e**2) / cfg.gain_e_per_dn,
+        max_dn,
+    )
+    frame = table[codes]
+    for r0, r1, c0, c1 in boxes:
+        frame[r0:r1, c0:c1] = _digitise(signal[r0:r1, c0:c1], codes[r0:r1, c0:c1], cfg, dark_e, max_dn)
+    points = np.concatenate([star_flat, hot_idx])
+    if points.size:
+        flat_frame = frame.reshape(-1)
+        flat_codes = codes.reshape(-1)
+        flat_frame[points] = _digitise(flat_signal[points], flat_codes[points], cfg, dark_e, max_dn)
+    return frame
+
+
+def _add_stars(
+    scene: Scene,
+    cfg: CameraConfig,
+    c2i: np.ndarray,
+    omega_c: np.ndarray,
+    f: float,
+    cx: float,
+    cy: float,
+    signal: np.ndarray,
+    occluders: list[tuple[tuple[int, int, int, int], np.ndarray]],
+) -> np.ndarray:
+    """Add the visible stars' smeared PSFs to ``signal``; return the flat indices touched."""
+    dirs, mags = [], []
+    if scene.star_seed is not None:
+        d, m = sky_stars(scene.star_seed, c2i, cfg)
+        dirs.append(d)
+        mags.append(m)
+    if scene.star_catalogue is not None:
+        dirs.append(scene.star_catalogue.directions_inertial)
+        mags.append(scene.star_catalogue.magnitudes)
+    if not dirs:
+        return np.empty(0, dtype=np.int64)
+    v = np.concatenate(dirs) @ c2i  # camera frame
+    mag = np.concatenate(mags)
+    size = cfg.resolution_px
+    front = v[:, 2] > 1e-6
+    v, mag = v[front], mag[front]
+    col = cx + f * v[:, 0] / v[:, 2]
+    row = cy + f * v[:, 1] / v[:, 2]
+    smear = _image_velocity_px_s(v, -np.cross(omega_c, v), f) * scene.exposure_s
+    hs = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.hypot(smear[:, 0], smear[:, 1]), initial=0.0)))
+    keep = (col > -hs) & (col < size - 1 + hs) & (row > -hs) & (row < size - 1 + hs)
+    ic = np.rint(col).astype(np.int64)
+    ir = np.rint(row).astype(np.int64)
+    for (r0, r1, c0, c1), hit in occluders:
+        inside = keep & (ir >= r0) & (ir < r1) & (ic >= c0) & (ic < c1)
+        where = np.flatnonzero(inside)
+        keep[where[hit[ir[where] - r0, ic[where] - c0]]] = False
+    if not keep.any():
+        return np.empty(0, dtype=np.int64)
+    col, row, ic, ir, mag, smear = col[keep], row[keep], ic[keep], ir[keep], mag[keep], smear[keep]
+    o = np.arange(-hs, hs + 1)
+    pc = ic[:, None, None] + o[None, None, :]
+    pr = ir[:, None, None] + o[None, :, None]
+    stamp = smeared_psf(
+        pc - col[:, None, None], pr - row[:, None, None], cfg.psf_sigma_px, smear[:, 0, None, None], smear[:, 1, None, None]
+    )
+    flux_e = cfg.star_mag0_e_s * 10.0 ** (-0.4 * mag) * scene.exposure_s
+    stamp *= (flux_e / stamp.sum(axis=(1, 2)))[:, None, None]
+    pr, pc = np.broadcast_arrays(pr, pc)
+    ok = (pr >= 0) & (pr < size) & (pc >= 0) & (pc < size)
+    flat = (pr[ok] * size + pc[ok]).astype(np.int64)
+    np.add.at(signal.reshape(-1), flat, stamp[ok].astype(np.float32))
+    return flat
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# Display
+
+
+def frame_to_png8(frame: np.ndarray, bit_depth: int) -> np.ndarray:
+    """8-bit display stretch of a frame: asinh between the median background and the brightest pixels."""
+    if frame.ndim != 2:
+        raise RenderError(f"frame_to_png8: frame must be 2-D, got shape {frame.shape}")
+    if not 1 <= bit_depth <= 16:
+        raise RenderError(f"frame_to_png8: bit_depth must be within [1, 16], got {bit_depth}")
+    x = frame.astype(np.float32)
+    lo = float(np.median(x[:: max(1, x.shape[0] // 256), :: max(1, x.shape[1] // 256)]))
+    hi = max(float(np.percentile(x, 99.99)), lo + 1.0)
+    soft = 20.0  # asinh knee: faint signal gets most of the 8-bit range
+    y = np.arcsinh(np.clip((x - lo) / (hi - lo), 0.0, None) * soft) / math.asinh(soft)
+    return np.clip(np.rint(y * 255.0), 0, 255).astype(np.uint8)
