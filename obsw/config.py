@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator, model_validator
 
 from flyby.model import Frozen
 
@@ -15,6 +15,87 @@ class ControlConfig(Frozen):
     kp_nm_per_rad: float = Field(0.012, gt=0, description="proportional gain, N m per rad of attitude error")
     kd_nms_per_rad: float = Field(0.09, gt=0, description="derivative gain, N m per rad/s of rate error")
     feedforward: bool = Field(True, description="add the reference angular acceleration times inertia")
+
+
+class RecognitionConfig(Frozen):
+    """Trajectory recognition: the candidate grid of (C/A time, C/A distance) and the continuous estimate beside it."""
+
+    grid_span_sigma: float = Field(
+        3.0, gt=0, description="the grid spans +- this many one-sigma uncertainties, sigma (paper: 3-sigma interval)"
+    )
+    grid_time_points: int = Field(
+        13, ge=1, description="candidates along C/A time, odd so the nominal is the centre (13: half-sigma cells)"
+    )
+    grid_distance_points: int = Field(
+        13, ge=1, description="candidates along C/A distance, odd so the nominal is the centre (13: half-sigma cells)"
+    )
+    angle_noise_rad: float = Field(
+        1.0e-4,
+        gt=0,
+        description="one-sigma noise of a measured LOS angle, rad (one 512-px centroid pixel over 2.9 deg is "
+        "9.9e-5 rad; the star tracker's 6 arcsec cross-boresight is 2.9e-5 rad)",
+    )
+    residual_cap_rad: float = Field(
+        0.01,
+        gt=0,
+        description="grid residuals are capped here, rad: a false detection (anywhere in the 2.9 deg FOV, up to "
+        "0.035 rad off the target) then adds the same cost to every far candidate and cannot flip the choice",
+    )
+    outlier_gate_sigma: float = Field(
+        5.0, gt=0, description="the continuous estimate ignores residuals beyond this many angle_noise_rad, sigma"
+    )
+    max_iterations: int = Field(
+        30, ge=1, description="Gauss-Newton iterations per solve of the continuous estimate (converges in < 10)"
+    )
+
+    @field_validator("grid_time_points", "grid_distance_points")
+    @classmethod
+    def _odd(cls, v: int) -> int:
+        if v % 2 == 0:
+            raise ValueError(f"must be odd so the nominal trajectory is the centre of the grid, got {v}")
+        return v
+
+
+class TrackingConfig(Frozen):
+    """Second-order (type-2) tracking loop on the image feedback (paper: 'Tracking and Trajectory Recognition')."""
+
+    natural_frequency_rad_s: float = Field(
+        0.3,
+        gt=0,
+        description="natural frequency of the correction loop, rad/s: five times below the 1.5 rad/s attitude "
+        "loop so the PD follows it, and settling (4/(zeta wn) = 17 s) well inside the 240 s acquisition phase",
+    )
+    damping: float = Field(
+        0.8,
+        gt=0,
+        description="damping ratio of the correction loop (paper: tuned on the overshoot; 0.8 gives the type-2 "
+        "loop's step an 18 % overshoot, 13.5 % being the least, at critical damping, for a slower settling)",
+    )
+    extrapolation_limit_s: float = Field(
+        3.0,
+        gt=0,
+        description="the last measured offset is extrapolated along its last slope for at most this long, then "
+        "held, s (three frame periods at the 1 s default camera cadence)",
+    )
+    boresight_body: tuple[float, float, float] = Field(
+        (0.0, 0.0, 1.0), description="on-board knowledge of the camera boresight, body axes (camera config default)"
+    )
+    plane_normal_axis_body: tuple[float, float, float] = Field(
+        (0.0, 1.0, 0.0),
+        description="body axis held along the flyby-plane normal, so the slew is about it alone (body Y: the "
+        "smaller transverse inertia, 0.117 vs 0.152 kg m^2); must be orthogonal to boresight_body",
+    )
+
+    @model_validator(mode="after")
+    def _orthogonal_axes(self) -> TrackingConfig:
+        b, p = self.boresight_body, self.plane_normal_axis_body
+        nb = sum(x * x for x in b) ** 0.5
+        np_ = sum(x * x for x in p) ** 0.5
+        if nb < 1e-9 or np_ < 1e-9:
+            raise ValueError(f"boresight_body {b} and plane_normal_axis_body {p} must be non-zero")
+        if abs(sum(x * y for x, y in zip(b, p))) > 1e-6 * nb * np_:
+            raise ValueError(f"plane_normal_axis_body {p} must be orthogonal to boresight_body {b}")
+        return self
 
 
 class ModesConfig(Frozen):
@@ -125,6 +206,17 @@ class ObswConfig(Frozen):
     """Everything the on-board software is configured with before the flyby."""
 
     housekeeping_period_s: float = Field(1.0, gt=0, description="PUS service 3 housekeeping period, OBT s")
+    control_period_s: float = Field(0.1, gt=0, description="nominal control period, OBT s (DESIGN: 10 Hz)")
+    schedule_capacity: int = Field(256, ge=1, description="PUS service 11 time-based schedule capacity, entries")
+    schedule_margin_s: float = Field(
+        1.0, ge=0, description="a scheduled command must be tagged at least this far after now, OBT s"
+    )
+    autonomy_estimate: Literal["grid", "continuous"] = Field(
+        "grid", description="which on-board C/A estimate autonomous tracking follows (paper: the grid)"
+    )
+    min_recognition_measurements: int = Field(
+        10, ge=1, description="line-of-sight measurements needed before the on-board C/A estimate is trusted"
+    )
     apid: int = Field(0x0C1, ge=0, lt=2048, description="APID of the on-board software's packets")
     inertia_kgm2: tuple[tuple[float, float, float], ...] = Field(
         ((0.152, 0.0, 0.0), (0.0, 0.117, 0.0), (0.0, 0.0, 0.058)),
@@ -132,4 +224,6 @@ class ObswConfig(Frozen):
     )
     control: ControlConfig = ControlConfig()
     modes: ModesConfig = ModesConfig()
+    recognition: RecognitionConfig = RecognitionConfig()
+    tracking: TrackingConfig = TrackingConfig()
     imaging: ImagingConfig = ImagingConfig()

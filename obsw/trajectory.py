@@ -82,7 +82,8 @@ class NominalTrajectory(Frozen):
     @property
     def plane_normal(self) -> NDArray[np.float64]:
         """Unit normal of the flyby plane, ``e_ca x e_v``: the axis about which the line of sight turns (+theta)."""
-        return np.cross(self.e_ca, self.e_v)
+        (cx, cy, cz), (vx, vy, vz) = self.ca_direction, self.approach_direction
+        return np.array([cy * vz - cz * vy, cz * vx - cx * vz, cx * vy - cy * vx])
 
     @property
     def speed_m_s(self) -> float:

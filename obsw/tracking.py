@@ -1,0 +1,281 @@
+"""Tracking loop: the desired attitude from the trajectory model, corrected by the image feedback.
+
+Paper ("Tracking and Trajectory Recognition Module"): a second-order loop on the image feedback and the
+trajectory's angle gives the desired pointing quaternion; it "fully corrects any initial pointing error" and
+compensates a constant rate error.
+
+The trajectory predicts the line of sight ``l_pred(t)``; the camera and the attitude give the measured one. Their
+difference, the rotation vector ``y`` taking ``l_pred`` to ``l_meas`` (inertial), is the offset to correct. A
+type-2 loop (proportional + integral on the error ``e = y - c``) drives the correction ``c``:
+
+    c' = i + kp e,    i' = ki e,    kp = 2 zeta wn,    ki = wn^2,
+
+so ``e'' + kp e' + ki e = y''``: a step offset decays as a second-order system of natural frequency ``wn`` and
+damping ``zeta``, a ramp (constant rate error) leaves no steady-state error, a parabola leaves ``a / wn^2``.
+Between frames the input ``y`` is the last measurement extrapolated along the slope of the last two (for at most
+``extrapolation_limit_s``, then held), and the loop is integrated exactly (matrix exponential) over each step, so
+the response does not depend on the control period or the frame cadence.
+
+The commanded attitude is ``R_des = R(c) R_pred`` where ``R_pred`` puts the boresight on ``l_pred`` and the
+``plane_normal_axis_body`` on the flyby-plane normal: the slew is a rotation about that one body axis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+from obsw.config import TrackingConfig
+from obsw.trajectory import NominalTrajectory
+
+
+@dataclass(frozen=True)
+class Reference:
+    """Desired attitude (body->inertial, scalar-last), body rate (rad/s) and angular acceleration (rad/s^2),
+    both in the desired body frame, and the commanded line of sight (inertial unit vector)."""
+
+    q_des: NDArray[np.float64]
+    omega_des_body: NDArray[np.float64]
+    alpha_des_body: NDArray[np.float64]
+    los_commanded_inertial: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+
+
+def offset_rotvec(los_from: ArrayLike, los_to: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vector (rad) of the smallest rotation taking unit vector ``los_from`` onto ``los_to``."""
+    a = np.asarray(los_from, dtype=float)
+    b = np.asarray(los_to, dtype=float)
+    axis = _cross(a, b)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-15:
+        if float(a @ b) < 0:
+            raise ValueError(f"line of sight {b} is opposite to {a}: the rotation between them is undefined")
+        return np.zeros(3)
+    return axis / s * np.arctan2(s, float(a @ b))
+
+
+def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Cross product of two 3-vectors (numpy.cross is ten times slower on single vectors)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def loop_transition(kp: float, ki: float, h_s: float) -> NDArray[np.float64]:
+    """exp(M h) for M = [[-kp, -1], [ki, 0]] in closed form (M = a I + N with N^2 = delta I)."""
+    a = -0.5 * kp
+    delta = 0.25 * kp * kp - ki
+    nil = np.array([[-kp - a, -1.0], [ki, -a]])
+    root = float(np.sqrt(abs(delta)))
+    x = root * h_s
+    if x < 1e-4:
+        # series of cosh/cos and sinh(x)/x, sin(x)/x to well below double precision at this size
+        sgn = 1.0 if delta >= 0 else -1.0
+        even = 1.0 + sgn * x * x / 2.0
+        odd = h_s * (1.0 + sgn * x * x / 6.0)
+    elif delta > 0:
+        even, odd = np.cosh(x), np.sinh(x) / root
+    else:
+        even, odd = np.cos(x), np.sin(x) / root
+    return np.exp(a * h_s) * (even * np.eye(2) + odd * nil)
+
+
+def _left_jacobian(phi: NDArray[np.float64]) -> NDArray[np.float64]:
+    """SO(3) left Jacobian: the angular velocity of ``R(phi(t))`` is ``J(phi) phi'``."""
+    angle = float(np.linalg.norm(phi))
+    k = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    if angle < 1e-6:
+        return np.eye(3) + 0.5 * k + k @ k / 6.0
+    return np.eye(3) + (1 - np.cos(angle)) / angle**2 * k + (angle - np.sin(angle)) / angle**3 * (k @ k)
+
+
+def _body_triad(cfg: TrackingConfig) -> NDArray[np.float64]:
+    """Columns: unit boresight, unit plane-normal axis (made exactly orthogonal), and their cross product."""
+    b = np.asarray(cfg.boresight_body, dtype=float)
+    b = b / np.linalg.norm(b)
+    p = np.asarray(cfg.plane_normal_axis_body, dtype=float)
+    p = p - float(p @ b) * b
+    p = p / np.linalg.norm(p)
+    return np.column_stack([b, p, _cross(b, p)])
+
+
+def _rotation_matrix(rotvec: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rodrigues: the rotation matrix of a rotation vector (rad)."""
+    angle = float(np.sqrt(rotvec @ rotvec))
+    k = np.array([[0.0, -rotvec[2], rotvec[1]], [rotvec[2], 0.0, -rotvec[0]], [-rotvec[1], rotvec[0], 0.0]])
+    if angle < 1e-8:
+        return np.eye(3) + k + 0.5 * (k @ k)
+    return np.eye(3) + np.sin(angle) / angle * k + (1 - np.cos(angle)) / angle**2 * (k @ k)
+
+
+def _predicted_matrix(trajectory: NominalTrajectory, obt_s: float, body_triad: NDArray[np.float64]) -> NDArray:
+    los = trajectory.los_inertial(obt_s)
+    n = trajectory.plane_normal  # exactly orthogonal to the LOS of a straight-line flyby
+    return np.column_stack([los, n, _cross(los, n)]) @ body_triad.T
+
+
+def predicted_attitude(trajectory: NominalTrajectory, obt_s: float, cfg: TrackingConfig) -> Rotation:
+    """Attitude putting the boresight on the predicted LOS and the plane-normal body axis on the plane normal."""
+    return Rotation.from_matrix(_predicted_matrix(trajectory, obt_s, _body_triad(cfg)))
+
+
+_Line = tuple[float, NDArray[np.float64], NDArray[np.float64]]
+
+
+class TrackingLoop:
+    """Second-order tracking loop; one ``update`` per control period. Pure: time and inputs come as arguments."""
+
+    def __init__(self, cfg: TrackingConfig) -> None:
+        self.cfg = cfg
+        self._kp = 2.0 * cfg.damping * cfg.natural_frequency_rad_s
+        self._ki = cfg.natural_frequency_rad_s**2
+        self._triad = _body_triad(cfg)
+        self._c = np.zeros(3)  # correction rotation vector, inertial, rad
+        self._i = np.zeros(3)  # integral state: the loop's estimate of the offset rate, rad/s
+        self._t: float | None = None  # loop time (advanced by dt_s), s
+        self._obt: float | None = None
+        self._trajectory: NominalTrajectory | None = None
+        # last two measurements: (loop time, OBT, measured LOS inertial)
+        self._meas: list[tuple[float, float, NDArray[np.float64]]] = []
+        self._line: _Line | None = None  # the input, from the measurements and the current trajectory
+
+    @property
+    def correction_rotvec(self) -> NDArray[np.float64]:
+        """Current correction applied to the predicted LOS, inertial rotation vector, rad."""
+        return self._c.copy()
+
+    def reset(self) -> None:
+        """Forget the correction and the measurements (e.g. on entering a new mode)."""
+        self.__init__(self.cfg)  # type: ignore[misc]
+
+    # --- input model ---------------------------------------------------------------------------------------------
+
+    def _input_line(self, trajectory: NominalTrajectory) -> _Line | None:
+        """(loop time of the last measurement, offset there, slope) of the extrapolated input, or None before any.
+
+        Offsets are taken against ``trajectory``, so a new trajectory model re-expresses the same measurements.
+        """
+        if not self._meas:
+            return None
+        t_k, obt_k, los_k = self._meas[-1]
+        y_k = offset_rotvec(trajectory.los_inertial(obt_k), los_k)
+        slope = np.zeros(3)
+        if len(self._meas) == 2:
+            t_j, obt_j, los_j = self._meas[0]
+            gap = t_k - t_j
+            if 0 < gap <= self.cfg.extrapolation_limit_s:
+                slope = (y_k - offset_rotvec(trajectory.los_inertial(obt_j), los_j)) / gap
+        return t_k, y_k, slope
+
+    def _input_at(self, line: _Line, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Input offset and its rate at loop time ``t``."""
+        t_k, y_k, slope = line
+        age = t - t_k
+        if age < self.cfg.extrapolation_limit_s:
+            return y_k + slope * age, slope
+        return y_k + slope * self.cfg.extrapolation_limit_s, np.zeros(3)
+
+    # --- loop ----------------------------------------------------------------------------------------------------
+
+    def _propagate(self, dt_s: float) -> None:
+        """Advance (c, i) exactly over dt_s: with e = y - c and a linear input, (e, i - y') obeys z' = M z."""
+        assert self._t is not None
+        line = self._line
+        if line is None:
+            self._c = self._c + self._i * dt_s  # no measurement yet: nothing to correct against
+            self._t += dt_s
+            return
+        t0, t1 = self._t, self._t + dt_s
+        knot = line[0] + self.cfg.extrapolation_limit_s  # the input stops sloping here
+        pieces = [t0, knot, t1] if t0 < knot < t1 else [t0, t1]
+        for a, b in zip(pieces[:-1], pieces[1:]):
+            y_a, slope = self._input_at(line, a)
+            z = np.vstack([y_a - self._c, self._i - slope])
+            z = loop_transition(self._kp, self._ki, b - a) @ z
+            self._c = y_a + slope * (b - a) - z[0]
+            self._i = z[1] + slope
+        self._t = t1
+
+    def _correction_rate(self) -> NDArray[np.float64]:
+        """c' = i + kp (y - c) at the current loop time."""
+        assert self._t is not None
+        if self._line is None:
+            return self._i.copy()
+        y, _ = self._input_at(self._line, self._t)
+        return self._i + self._kp * (y - self._c)
+
+    def _rebase(self, old: NominalTrajectory, new: NominalTrajectory) -> None:
+        """Keep the commanded attitude and rate continuous when the trajectory model is replaced."""
+        assert self._obt is not None and self._t is not None
+        rate_before = self._correction_rate()
+        shift = Rotation.from_rotvec(offset_rotvec(new.los_inertial(self._obt), old.los_inertial(self._obt)))
+        self._c = (Rotation.from_rotvec(self._c) * shift).as_rotvec()
+        self._line = self._input_line(new)
+        # commanded LOS rate ~ theta' n + c': move the difference of the trajectories' rates into c'
+        wanted_rate = rate_before + (old.los_rate_rad_s(self._obt) - new.los_rate_rad_s(self._obt)) * new.plane_normal
+        self._i = self._i + wanted_rate - self._correction_rate()
+
+    def update(
+        self,
+        obt_s: float,
+        dt_s: float,
+        trajectory: NominalTrajectory,
+        los_measured_inertial: ArrayLike | None,
+    ) -> Reference:
+        """Advance the loop by ``dt_s`` to ``obt_s``, take the measured LOS (inertial unit vector, or None when the
+        target was not seen) taken at ``obt_s``, and return the reference at ``obt_s``.
+
+        ``dt_s`` (the control period) drives the loop, ``obt_s`` the trajectory, so an OBT jump does not make the
+        loop integrate over the jump. The first call starts the loop at ``obt_s`` and ignores ``dt_s``. A change
+        of ``trajectory`` (e.g. to the recognised one) keeps the commanded attitude and rate continuous.
+        """
+        if not np.isfinite(obt_s):
+            raise ValueError(f"obt_s must be finite, got {obt_s}")
+        los = None
+        if los_measured_inertial is not None:
+            los = np.asarray(los_measured_inertial, dtype=float)
+            norm = float(np.linalg.norm(los)) if los.shape == (3,) else 0.0
+            if los.shape != (3,) or not np.isfinite(norm) or abs(norm - 1.0) > 1e-6:
+                raise ValueError(f"los_measured_inertial must be a unit 3-vector, got {los_measured_inertial}")
+        if self._t is None:
+            self._t = 0.0
+        else:
+            if not (np.isfinite(dt_s) and dt_s >= 0):
+                raise ValueError(f"dt_s must be finite and >= 0, got {dt_s}")
+            if self._trajectory is not None and trajectory != self._trajectory:
+                self._rebase(self._trajectory, trajectory)
+            self._propagate(dt_s)
+        self._obt = float(obt_s)
+        if los is not None:
+            self._meas = [*self._meas[-1:], (self._t, self._obt, los)]
+        if los is not None or trajectory != self._trajectory:
+            self._line = self._input_line(trajectory)
+        self._trajectory = trajectory
+        return self._reference(trajectory)
+
+    def _reference(self, trajectory: NominalTrajectory) -> Reference:
+        """R_des = R(c) R_pred; omega and alpha from theta', theta'' about the normal plus the correction's motion."""
+        assert self._obt is not None and self._t is not None
+        obt = self._obt
+        r_c = _rotation_matrix(self._c)
+        r_des = r_c @ _predicted_matrix(trajectory, obt, self._triad)
+        n_c = r_c @ trajectory.plane_normal
+        rate = float(trajectory.los_rate_rad_s(obt))
+        accel = float(trajectory.los_accel_rad_s2(obt))
+        c_dot = self._correction_rate()
+        if self._line is None:
+            c_ddot = np.zeros(3)
+        else:
+            y, y_dot = self._input_at(self._line, self._t)
+            c_ddot = self._ki * (y - self._c) + self._kp * (y_dot - c_dot)
+        jac = _left_jacobian(self._c)
+        omega_c = jac @ c_dot  # angular velocity of R(c), inertial
+        omega_in = omega_c + rate * n_c
+        # d/dt omega_in, neglecting J' c' (second order in the small correction)
+        alpha_in = jac @ c_ddot + rate * _cross(omega_c, n_c) + accel * n_c
+        return Reference(
+            q_des=Rotation.from_matrix(r_des).as_quat(),
+            omega_des_body=r_des.T @ omega_in,
+            alpha_des_body=r_des.T @ alpha_in,
+            los_commanded_inertial=r_c @ trajectory.los_inertial(obt),
+        )
