@@ -86,6 +86,9 @@ class TruthRecord(Frozen):
     range_m: float
     theta_rad: float
     phase_angle_deg: float
+    frame_id: int | None = Field(None, description="camera frame exposed at this period, if any")
+    dimorphos_px: tuple[float, float] | None = Field(None, description="true (col, row) of Dimorphos in that frame")
+    didymos_px: tuple[float, float] | None = Field(None, description="true (col, row) of Didymos in that frame")
 
 
 class GroundStep(Message):

@@ -1155,6 +1155,61 @@ class NavigationReport(_Payload):
         )
 
 
+_EST = struct.Struct(">IB7d")
+
+
+class EstimateReport(_Payload):
+    """TM[200,131] the on-board C/A estimates: best grid candidate and the continuous (least-squares) estimate.
+
+    Layout: u32 line-of-sight measurements used, u8 validity flags (bit0 grid, bit1 continuous), f64 grid C/A OBT s,
+    grid C/A distance km, grid mean square error rad^2, continuous C/A OBT s, continuous C/A distance km, and the
+    continuous estimate's one-sigma C/A time s and distance km.
+    """
+
+    SERVICE: ClassVar[int] = MISSION_SERVICE
+    SUBSERVICE: ClassVar[int] = 131
+    n_measurements: U32
+    grid_ca_obt_s: Finite | None = None
+    grid_ca_distance_km: Finite | None = None
+    grid_mse_rad2: Finite | None = None
+    continuous_ca_obt_s: Finite | None = None
+    continuous_ca_distance_km: Finite | None = None
+    continuous_sigma_time_s: Finite | None = None
+    continuous_sigma_distance_km: Finite | None = None
+
+    @model_validator(mode="after")
+    def _complete(self) -> EstimateReport:
+        grid = (self.grid_ca_obt_s, self.grid_ca_distance_km, self.grid_mse_rad2)
+        cont = (self.continuous_ca_obt_s, self.continuous_ca_distance_km, self.continuous_sigma_time_s,
+                self.continuous_sigma_distance_km)
+        for name, group in (("grid_ca_obt_s", grid), ("continuous_ca_obt_s", cont)):
+            if any(v is None for v in group) and any(v is not None for v in group):
+                raise ValueError(f"{name}: an estimate needs all of its values, or none")
+        return self
+
+    def app_data(self) -> bytes:
+        """The fixed 61-octet layout; absent values are sent as 0 with their validity bit clear."""
+        flags = (self.grid_ca_obt_s is not None) | (self.continuous_ca_obt_s is not None) << 1
+        return _EST.pack(self.n_measurements, flags, _opt(self.grid_ca_obt_s), _opt(self.grid_ca_distance_km),
+                         _opt(self.grid_mse_rad2), _opt(self.continuous_ca_obt_s),
+                         _opt(self.continuous_ca_distance_km), _opt(self.continuous_sigma_time_s),
+                         _opt(self.continuous_sigma_distance_km))
+
+    @classmethod
+    def from_app_data(cls, subservice: int, r: _Reader) -> Self:
+        """Parse the fixed layout."""
+        v = r.take(_EST.format[1:], "estimate")
+        flags = v[1]
+        if flags & ~0b11:
+            raise BadArgument(f"{cls.__name__}.flags", f"unknown validity bits 0x{flags:02X}")
+        g, c = bool(flags & 1), bool(flags & 2)
+        return _built(cls, cls.__name__, n_measurements=v[0],
+                      grid_ca_obt_s=v[2] if g else None, grid_ca_distance_km=v[3] if g else None,
+                      grid_mse_rad2=v[4] if g else None, continuous_ca_obt_s=v[5] if c else None,
+                      continuous_ca_distance_km=v[6] if c else None, continuous_sigma_time_s=v[7] if c else None,
+                      continuous_sigma_distance_km=v[8] if c else None)
+
+
 # ---------------------------------------------------------------------------------------------- registries
 
 TcCommand: TypeAlias = (
@@ -1187,6 +1242,7 @@ TmReport: TypeAlias = (
     | ScheduleDetailReport
     | ScheduleSummaryReport
     | NavigationReport
+    | EstimateReport
 )
 
 _TC_TYPES: dict[tuple[int, int], type[_Payload]] = {
@@ -1218,6 +1274,7 @@ _TM_TYPES: dict[tuple[int, int], type[_Payload]] = {
     (11, 10): ScheduleDetailReport,
     (11, 13): ScheduleSummaryReport,
     (MISSION_SERVICE, 130): NavigationReport,
+    (MISSION_SERVICE, 131): EstimateReport,
 }
 _EVENT_TYPES: dict[int, type[EventReport]] = {
     int(c.EVENT_ID): c

@@ -330,6 +330,9 @@ class UniverseConfig(Frozen):
     plume: PlumeConfig = PlumeConfig()
     oscillator: OscillatorConfig = OscillatorConfig()
     faults: list[FaultConfig] = Field(default_factory=list, description="faults to inject")
+    save_frames_every: int = Field(
+        1, ge=0, description="write every n-th camera frame as an 8-bit 512x512 PNG into the run folder (0: none)"
+    )
 
     @field_validator("end_s")
     @classmethod

@@ -23,3 +23,20 @@ def test_round_trip(frame_id: int, dim: tuple | None, did: tuple | None, area: i
     assert back == r
     assert (header.service, header.subservice) == (200, 130)
     assert PusTm.unpack(raw, timestamp_len=pus.CUC_LEN).service == 200
+
+
+est = st.floats(-1e9, 1e9, allow_nan=False)
+
+
+@given(n=st.integers(0, 2**32 - 1), grid=st.none() | st.tuples(est, est, est),
+       cont=st.none() | st.tuples(est, est, est, est))
+def test_estimate_report_round_trip(n: int, grid: tuple | None, cont: tuple | None) -> None:
+    """The C/A estimate report round-trips, each estimate present or absent as a whole."""
+    g = grid or (None, None, None)
+    c = cont or (None, None, None, None)
+    r = pus.EstimateReport(n_measurements=n, grid_ca_obt_s=g[0], grid_ca_distance_km=g[1], grid_mse_rad2=g[2],
+                           continuous_ca_obt_s=c[0], continuous_ca_distance_km=c[1], continuous_sigma_time_s=c[2],
+                           continuous_sigma_distance_km=c[3])
+    header, back = pus.decode_tm(pus.encode_tm(r, 0x0C1, 1, 5.0, 0))
+    assert back == r
+    assert (header.service, header.subservice) == (200, 131)

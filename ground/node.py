@@ -1,0 +1,162 @@
+"""The ground node: the ground segment core on the bus, with the telemetry archive and the run's summary.
+
+Every ``GroundStep`` from the universe brings the telemetry the antenna received and the truth of the
+period; ground archives both, answers with the telecommands to radiate, and at the end of the run writes the
+summary (and the report) into its output folder.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+import zenoh
+
+from flyby.bus import Keys
+from flyby.clock import WallClock
+from flyby.errors import NodeFailure
+from flyby.messages import GroundReply, GroundStep, OperatorCommand, TruthRecord
+from flyby.runtime import Attachment, PeerStopped, RelayedFailure
+from flyby.scenario import Scenario
+from ground.archive import Archive
+from ground.segment import GroundSegment
+from timeline.model import Timeline
+
+log = logging.getLogger("ground")
+
+EXIT_OK, EXIT_INTERNAL, EXIT_PEER = 0, 1, 3
+
+TRUTH_COLUMNS = ("t_s", "obt_s", "qx", "qy", "qz", "qw", "wx_rad_s", "wy_rad_s", "wz_rad_s",
+                 "pointing_error_rad", "target_in_fov", "range_m", "theta_rad", "phase_angle_deg")
+
+
+class TruthLog:
+    """The universe's truth, one CSV row per control period (wheel columns follow the wheel count)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._f: IO[str] = open(path, "w", newline="")
+        self._w = csv.writer(self._f)
+        self._header = False
+        self.rows: list[TruthRecord] = []
+
+    def add(self, rec: TruthRecord) -> None:
+        """Append one record (kept in memory too, for the summary)."""
+        if not self._header:
+            n = len(rec.wheel_momentum_nms)
+            self._w.writerow([*TRUTH_COLUMNS, "frame_id", "dimorphos_col", "dimorphos_row", "didymos_col",
+                              "didymos_row", *(f"h{i}_nms" for i in range(n)), *(f"u{i}_nm" for i in range(n))])
+            self._header = True
+        self._w.writerow([rec.t_s, rec.obt_s, *rec.q, *rec.omega_rad_s, rec.pointing_error_rad,
+                          int(rec.target_in_fov), rec.range_m, rec.theta_rad, rec.phase_angle_deg,
+                          "" if rec.frame_id is None else rec.frame_id, *(rec.dimorphos_px or ("", "")),
+                          *(rec.didymos_px or ("", "")), *rec.wheel_momentum_nms, *rec.wheel_torque_nm])
+        self.rows.append(rec)
+
+    def close(self) -> None:
+        """Flush and close the file."""
+        self._f.close()
+
+
+def summary_lines(scenario: Scenario, segment: GroundSegment, truth: list[TruthRecord], archive: Archive) -> list[str]:
+    """The figures a user wants at the end of a run, one per line."""
+    lines = [f"scenario {scenario.name}, seed {scenario.seed}"]
+    if truth:
+        fov = scenario.universe.camera.fov_deg
+        err_deg = np.degrees([r.pointing_error_rad for r in truth])
+        rate_deg_s = np.degrees([float(np.linalg.norm(r.omega_rad_s)) for r in truth])
+        in_fov = np.array([r.target_in_fov for r in truth])
+        lines.append(f"target in field of view: {100 * in_fov.mean():.1f}% of control periods; "
+                     f"max pointing error {err_deg.max():.3f} deg (half FOV {fov / 2:.2f} deg); "
+                     f"peak body rate {rate_deg_s.max():.2f} deg/s")
+    counts = archive.counts()
+    lines.append(f"telemetry: {counts.get('stored', 0)} packets archived, {segment.state.undecodable} undecodable, "
+                 f"{len(archive.gaps())} sequence gap(s)")
+    c = segment.correlation
+    lines.append(f"time correlation: OBT - UTC offset {c.offset_s:+.4f} s, drift {c.drift_ppm:+.3f} ppm "
+                 f"from {c.n_reports} time reports")
+    return lines
+
+
+def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthLog, scenario: Scenario) -> None:
+    """Answer ground steps until the run ends."""
+    last: tuple[int, GroundReply] | None = None
+    last_status = -1.0
+    wait = scenario.bus.startup_timeout_s + scenario.bus.reply_timeout_s
+    while True:
+        got = bus.receive(wait)
+        if got is None:
+            raise NodeFailure("universe", bus.sim_time_s, f"stopped sending ground steps (nothing for {wait:g} s)")
+        msg = got.msg
+        if isinstance(msg, OperatorCommand):
+            log.info("operator command %s (%s)", msg.action, msg.name)
+            continue
+        if not isinstance(msg, GroundStep):
+            continue
+        wait = scenario.bus.reply_timeout_s
+        if last is not None and msg.step <= last[0]:
+            if msg.step == last[0]:
+                bus.publish(bus.keys.ground_reply, last[1])
+            continue
+        bus.sim_time_s = msg.utc_s
+        uplink, received, lines = segment.step(msg.utc_s, msg.downlink, msg.downlink_utc_s)
+        for p in received:
+            archive.store(p.raw, p.receipt_utc_s)
+        archive.flush()  # at most one ground step of telemetry is ever unwritten
+        for rec in msg.truth:
+            truth.add(rec)
+        for line in lines:
+            log.info("%s", line)
+        reply = GroundReply(step=msg.step, uplink=tuple(uplink))
+        bus.publish(bus.keys.ground_reply, reply)
+        last = (msg.step, reply)
+        now = bus.clock.now()
+        if now - last_status >= 0.5:
+            hk = segment.state.last_hk
+            bus.status(msg.utc_s, None, hk.mode.name if hk is not None else None,
+                       text=f"{segment.state.received} TM packets")
+            last_status = now
+
+
+def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timeline: Timeline | None = None) -> int:
+    """Run the ground node until the run ends or a peer fails; return the process exit code."""
+    keys = Keys(run_id)
+    segment = GroundSegment(scenario, timeline)
+    archive = Archive(out / "archive.sqlite", tm_bin=out / "tm.bin")
+    truth = TruthLog(out / "truth.csv")
+    code = EXIT_OK
+    with zenoh.open(conf) as session:
+        bus = Attachment(session, keys, "ground", WallClock(), log)
+        bus.subscribe(keys.ground_step, GroundStep)
+        bus.subscribe(keys.operator, OperatorCommand)
+        bus.watch_peers()
+        bus.declare_alive()
+        try:
+            run(bus, segment, archive, truth, scenario)
+        except NodeFailure as failure:
+            log.error("%s", failure)
+            if not isinstance(failure, RelayedFailure):
+                bus.shutdown(str(failure), failed=True)
+            code = EXIT_PEER
+        except PeerStopped as stop:
+            log.info("stopped by %s: %s", stop.shutdown.node, stop.shutdown.reason)
+        except Exception as exc:
+            log.exception("internal error")
+            bus.shutdown(f"ground internal error: {exc!r}", failed=True)
+            code = EXIT_INTERNAL
+        finally:
+            bus.close()
+    # whatever happened, keep what was received: write the summary, then close the archive
+    truth.close()
+    lines = summary_lines(scenario, segment, truth.rows, archive)
+    archive.close()
+    if code != EXIT_OK:
+        lines.insert(0, "run ended early: the figures cover only what was received")
+    (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
+    for line in lines:
+        log.info("%s", line)
+    return code

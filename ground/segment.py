@@ -1,0 +1,173 @@
+"""The ground segment core: what ground believes, what it uploads, and what it makes of the telemetry.
+
+Pure: each ``step`` takes the UTC and the telemetry packets the antenna received and returns the telecommands
+to radiate, the decoded packets for the archive, and log lines. Ground knows UTC only: it converts everything
+it uploads to on-board time with its current OBT-UTC correlation, fitted from the service 9 time reports
+(each stamped on board one light time before it arrived).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flyby import pus
+from flyby.scenario import Scenario
+from flyby.seeding import rng_streams
+from ground.correlation import Correlation, CorrelationError, TimeReport, fitted_correlation
+from ground.uplink import schedule_insert
+from timeline.convert import resolved_commands
+from timeline.model import Timeline, TimelineError
+from universe.geometry import nominal_ca
+
+
+@dataclass(frozen=True)
+class ReceivedPacket:
+    """One telemetry packet as ground received it: raw bytes, and its decoding or why it failed."""
+
+    raw: bytes
+    receipt_utc_s: float
+    header: pus.TmHeader | None
+    report: pus.TmReport | None
+    error: str | None
+
+
+@dataclass
+class GroundState:
+    """Counters and latest values that ground keeps between steps."""
+
+    tc_seq: int = 0
+    received: int = 0
+    undecodable: int = 0
+    time_reports: list[TimeReport] = field(default_factory=list)
+    last_hk: pus.Housekeeping | None = None
+    last_hk_obt_s: float | None = None
+    nominal_sent: bool = False
+    verifications_failed: int = 0
+
+
+class GroundSegment:
+    """Ground's logic for one run."""
+
+    def __init__(self, scenario: Scenario, timeline: Timeline | None = None) -> None:
+        self.scenario = scenario
+        self.cfg = scenario.ground
+        u = scenario.universe
+        # Ground's belief about the flyby: truth plus the seeded knowledge error of the scenario.
+        self.nominal_ca_utc_s, self.nominal_ca_km = nominal_ca(u.flyby, u.uncertainty, rng_streams(scenario.seed)["nominal"])
+        self.correlation = Correlation.exact(self.cfg.a_priori_obt_offset_s, 0.0)
+        self.state = GroundState()
+        self.timeline = timeline
+        self._queue: list[pus.TcCommand] = []
+
+    def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
+        """The nominal trajectory telecommand, its C/A time in OBT by the current correlation."""
+        f = self.scenario.universe.flyby
+        unc = self.scenario.universe.uncertainty
+        e_v = np.asarray(f.approach_direction, dtype=float)
+        e_v /= np.linalg.norm(e_v)
+        e_ca = np.asarray(f.ca_direction, dtype=float)
+        e_ca = e_ca - (e_ca @ e_v) * e_v
+        e_ca /= np.linalg.norm(e_ca)
+        return pus.UploadNominalTrajectory(
+            ca_obt_s=self.correlation.to_obt(self.nominal_ca_utc_s),
+            ca_distance_km=self.nominal_ca_km,
+            speed_km_s=f.speed_km_s,
+            approach_direction=tuple(float(c) for c in e_v),
+            ca_direction=tuple(float(c) for c in e_ca),
+            sigma_ca_time_s=unc.ca_time_sigma_s,
+            sigma_ca_distance_km=unc.ca_distance_sigma_km,
+        )
+
+    def queue(self, cmd: pus.TcCommand) -> None:
+        """Send ``cmd`` at the next step (operator commands, timeline uploads)."""
+        self._queue.append(cmd)
+
+    def _tc(self, cmd: pus.TcCommand) -> bytes:
+        return pus.encode_tc(cmd, self.cfg.apid, self._next_seq())
+
+    def step(self, utc_s: float, downlink: tuple[bytes, ...], arrival_utc_s: tuple[float, ...]
+             ) -> tuple[list[bytes], list[ReceivedPacket], list[str]]:
+        """Take the telemetry received by ``utc_s`` (each packet with its arrival UTC).
+
+        Returns the telecommands to radiate now, the received packets, and log lines.
+        """
+        log: list[str] = []
+        received = [self._receive(raw, t, log) for raw, t in zip(downlink, arrival_utc_s, strict=True)]
+        uplink: list[bytes] = []
+        upload_at = self.cfg.upload_nominal_at_s if self.cfg.upload_nominal_at_s is not None else float("-inf")
+        if not self.state.nominal_sent and utc_s >= upload_at:
+            self.state.nominal_sent = True
+            tc = self.nominal_trajectory_tc()
+            log.append(f"upload nominal trajectory: C/A {self.nominal_ca_utc_s:.2f} s UTC = OBT {tc.ca_obt_s:.2f} s, "
+                       f"{self.nominal_ca_km:.2f} km")
+            uplink.append(self._tc(tc))
+            uplink.append(self._tc(pus.SetTimeReportRate(rate_exponent=self.cfg.time_report_rate_exponent)))
+            if self.timeline is not None and self.timeline.entries:
+                insert = self.timeline_upload(utc_s, tc, log)
+                if insert is not None:
+                    uplink.append(self._tc(insert))
+                    log.append(f"upload timeline: {len(insert.activities)} of {len(self.timeline.entries)} "
+                               "command(s) into the on-board schedule")
+        for cmd in self._queue:
+            uplink.append(self._tc(cmd))
+        self._queue = []
+        return uplink, received, log
+
+    def timeline_upload(self, utc_s: float, nominal: pus.UploadNominalTrajectory,
+                        log: list[str]) -> pus.InsertActivities | None:
+        """The service 11 insert of the timeline, tags in OBT by the current correlation.
+
+        Commands that would reach the spacecraft too late (before now + light time + margin) are refused here,
+        each logged with its row, and the rest is uploaded; None if nothing is left.
+        """
+        assert self.timeline is not None
+        source = self.cfg.timeline_file or "<timeline>"
+        not_before = self.correlation.to_obt(utc_s + self.cfg.link.one_way_light_time_s + self.cfg.upload_margin_s)
+        kw = dict(epoch_utc=self.scenario.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
+        try:
+            resolved = resolved_commands(self.timeline, self.correlation, not_before_obt_s=not_before, **kw)
+        except TimelineError as err:
+            log.extend(f"timeline command refused: {p}" for p in err.problems)
+            resolved = [r for r in resolved_commands(self.timeline, self.correlation, **kw) if r.obt_s >= not_before]
+        if not resolved:
+            return None
+        return schedule_insert(resolved, self.cfg.apid, self._next_seq, nominal)
+
+    def _next_seq(self) -> int:
+        seq = self.state.tc_seq
+        self.state.tc_seq = (seq + 1) % pus.SEQ_COUNT_MODULO
+        return seq
+
+    def _receive(self, raw: bytes, utc_s: float, log: list[str]) -> ReceivedPacket:
+        self.state.received += 1
+        try:
+            header, report = pus.decode_tm(raw)
+        except pus.PacketError as exc:
+            self.state.undecodable += 1
+            log.append(f"undecodable telemetry packet ({len(raw)} octets): {exc}")
+            return ReceivedPacket(raw, utc_s, None, None, str(exc))
+        if isinstance(report, pus.TimeReport):
+            self.state.time_reports.append(TimeReport(obt_s=report.obt_s, received_utc_s=utc_s,
+                                                      light_time_s=self.cfg.link.one_way_light_time_s))
+            self._refit(log)
+        elif isinstance(report, pus.Housekeeping):
+            self.state.last_hk, self.state.last_hk_obt_s = report, header.obt_s
+        elif isinstance(report, pus.Verification) and not report.success:
+            self.state.verifications_failed += 1
+            log.append(f"TC {report.request_id.seq_count} failed at {report.stage.name.lower()}: "
+                       f"code 0x{report.failure_code:04X} {report.reason}")
+        elif isinstance(report, pus.EventReport):
+            log.append(f"event OBT {header.obt_s:.2f} s {type(report).__name__}: "
+                       + ", ".join(f"{k}={v}" for k, v in report.model_dump().items() if k != "severity"))
+        return ReceivedPacket(raw, utc_s, header, report, None)
+
+    def _refit(self, log: list[str]) -> None:
+        reports = self.state.time_reports
+        if len(reports) < 3:
+            return
+        try:
+            self.correlation = fitted_correlation(reports[-self.cfg.correlation_window:])
+        except CorrelationError as exc:
+            log.append(f"time correlation not updated: {exc}")

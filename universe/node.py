@@ -1,0 +1,119 @@
+"""The universe node: the simulator core on the bus. It owns true time and drives the lock-step.
+
+Each control period it publishes a ``StepRequest`` to the OBSW and waits for the ``StepReply``; every ground
+period it publishes a ``GroundStep`` to ground and waits for the ``GroundReply``. With ``realtime`` it also
+waits for the wall clock, for hardware in the loop.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import cv2
+import zenoh
+
+from flyby.bus import Keys
+from flyby.clock import Clock, WallClock
+from flyby.errors import NodeFailure
+from flyby.messages import GroundReply, StepReply
+from flyby.runtime import Attachment, PeerStopped, RelayedFailure
+from flyby.scenario import Scenario
+from universe.camera import frame_to_png8
+from universe.simulator import Universe
+
+log = logging.getLogger("universe")
+
+EXIT_OK, EXIT_INTERNAL, EXIT_CONFIG, EXIT_PEER = 0, 1, 2, 3
+
+
+class FrameWriter:
+    """Writes the frames the camera took as 8-bit 512x512 PNGs, for the report and for people to look at."""
+
+    def __init__(self, folder: Path, every: int, bit_depth: int) -> None:
+        self.folder, self.every, self.bit_depth = folder, every, bit_depth
+        self._last = -1
+        if every:
+            folder.mkdir(parents=True, exist_ok=True)
+
+    def maybe_write(self, sim: Universe) -> None:
+        """Write the latest frame if it is new and one of every n-th."""
+        fid = sim.frame_count - 1
+        if not self.every or sim.last_frame is None or fid == self._last:
+            return
+        self._last = fid
+        if fid % self.every:
+            return
+        img = cv2.resize(frame_to_png8(sim.last_frame, self.bit_depth), (512, 512), interpolation=cv2.INTER_AREA)
+        cv2.imwrite(str(self.folder / f"frame_{fid:05d}.png"), img)
+
+
+def run(bus: Attachment, sim: Universe, scenario: Scenario, realtime: bool, clock: Clock,
+        frames: FrameWriter | None = None) -> None:
+    """Drive the simulation to its end over the bus."""
+    timeout = scenario.bus.reply_timeout_s
+    bus.wait_for_peers(["obsw", "ground"], scenario.bus.startup_timeout_s)
+    log.info("peers up; running %s from t=%.1f s to %.1f s", scenario.name, sim.t_s, scenario.universe.end_s)
+    wall0, sim0 = clock.now(), sim.t_s
+    last_status = -1.0
+    request, blob = sim.begin()
+    while True:
+        bus.sim_time_s = sim.t_s
+        if realtime:
+            clock.sleep_until(wall0 + (sim.t_s - sim0))
+        if sim.ground_due():
+            gr = bus.exchange(bus.keys.ground_step, sim.ground_step(), b"", GroundReply, "ground", timeout)
+            sim.accept_ground(gr.msg)  # type: ignore[arg-type]
+        reply = bus.exchange(bus.keys.step, request, blob, StepReply, "obsw", timeout)
+        for line in sim.take_log():
+            log.info("%s", line)
+        nxt = sim.advance(reply.msg)  # type: ignore[arg-type]
+        if frames is not None:
+            frames.maybe_write(sim)
+        now = clock.now()
+        if now - last_status >= 0.5 or nxt is None:
+            rtf = (sim.t_s - sim0) / max(now - wall0, 1e-9)
+            bus.status(sim.t_s, rtf, None, text=f"step {sim.step}")
+            last_status = now
+        if nxt is None:
+            break
+        request, blob = nxt
+    # hand ground the last truth, and the telemetry still travelling down, before stopping
+    while (gs := sim.drain()) is not None:
+        bus.sim_time_s = sim.t_s
+        bus.exchange(bus.keys.ground_step, gs, b"", GroundReply, "ground", timeout)
+
+
+def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, realtime: bool = False) -> int:
+    """Run the universe node until the scenario ends or a peer fails; return the process exit code."""
+    keys = Keys(run_id)
+    with zenoh.open(conf) as session:
+        bus = Attachment(session, keys, "universe", WallClock(), log)
+        bus.subscribe(keys.reply, StepReply)
+        bus.subscribe(keys.ground_reply, GroundReply)
+        bus.watch_peers()
+        bus.declare_alive()
+        try:
+            sim = Universe(scenario)
+            frames = FrameWriter(out / "frames", scenario.universe.save_frames_every, scenario.universe.camera.bit_depth)
+            run(bus, sim, scenario, realtime, WallClock(), frames)
+        except NodeFailure as failure:
+            log.error("%s", failure)
+            if not isinstance(failure, RelayedFailure):
+                bus.shutdown(str(failure), failed=True)
+            return EXIT_PEER
+        except PeerStopped as stop:
+            log.info("stopped by %s: %s", stop.shutdown.node, stop.shutdown.reason)
+            return EXIT_OK if not stop.shutdown.failed else EXIT_PEER
+        except Exception as exc:
+            log.exception("internal error")
+            bus.shutdown(f"universe internal error: {exc!r}", failed=True)
+            return EXIT_INTERNAL
+        else:
+            log.info("run complete at t=%.1f s (%d steps); %d undecodable messages", sim.t_s, sim.step,
+                     bus.decode_errors)
+            bus.shutdown("run complete", failed=False)
+            bus.wait_until_gone(["obsw", "ground"], timeout_s=scenario.bus.reply_timeout_s * 6)
+            return EXIT_OK
+        finally:
+            bus.close()

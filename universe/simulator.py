@@ -1,0 +1,215 @@
+"""The universe core: true time, flyby geometry, attitude dynamics, sensors, camera, link and faults, step by step.
+
+Pure with respect to the outside world: it takes the OBSW's ``StepReply`` and ground's ``GroundReply`` and returns
+the next ``StepRequest`` and ``GroundStep``. All randomness comes from one ``SeedSequence`` of the scenario seed,
+spawned into one independent stream per subsystem, so adding draws to one never changes another's.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from flyby.messages import (
+    FrameMeta,
+    GroundReply,
+    GroundStep,
+    SensorData,
+    StepReply,
+    StepRequest,
+    TruthRecord,
+)
+from flyby.scenario import Scenario
+from flyby.seeding import rng_streams
+from universe.config import FaultConfig
+from universe.dynamics import AttitudeState, SpacecraftDynamics
+from universe.geometry import FlybyGeometry
+from universe.link import SpaceLink
+from universe.oscillator import Oscillator, clock_jumps_s
+from universe.scene import body_shapes, render_at
+from universe.sensors import Sensors
+
+def pointing_attitude(los_inertial: np.ndarray, roll_ref_inertial: np.ndarray) -> Rotation:
+    """The attitude that puts the body +Z boresight on ``los`` with body +X as close as possible to ``roll_ref``."""
+    z = los_inertial / np.linalg.norm(los_inertial)
+    x = roll_ref_inertial - (roll_ref_inertial @ z) * z
+    if np.linalg.norm(x) < 1e-9:  # reference along the boresight: any perpendicular will do
+        x = np.cross(z, [0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    return Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z]))
+
+
+class FaultBook:
+    """The scenario's faults: which are active at a time, and a log line at each start and end."""
+
+    def __init__(self, faults: list[FaultConfig]) -> None:
+        self.faults = list(faults)
+        self._active: set[int] = set()
+
+    def active(self, kind: str, t_s: float) -> list[FaultConfig]:
+        """Faults of ``kind`` whose window contains ``t_s``."""
+        return [f for f in self.faults if f.kind == kind and f.start_s <= t_s < f.end_s]
+
+    def transitions(self, t_s: float) -> Iterator[str]:
+        """Log lines for the faults that started or ended by ``t_s`` since the last call."""
+        for i, f in enumerate(self.faults):
+            on = f.start_s <= t_s < f.end_s
+            what = f.kind + (f" wheel {f.wheel}" if f.wheel is not None else "") + (
+                f" magnitude {f.magnitude:g}" if f.magnitude is not None else "")
+            if on and i not in self._active:
+                self._active.add(i)
+                yield f"fault start t={t_s:.2f} s: {what} (window {f.start_s:g}..{f.end_s:g} s)"
+            elif not on and i in self._active:
+                self._active.discard(i)
+                yield f"fault end   t={t_s:.2f} s: {what}"
+
+
+class Universe:
+    """The whole truth of one run, advanced one control period at a time."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        u = scenario.universe
+        self.scenario = scenario
+        self.cfg = u
+        self.rng = rng_streams(scenario.seed)
+        self.geometry = FlybyGeometry(u.flyby, u.bodies)
+        self.dynamics = SpacecraftDynamics(u.spacecraft)
+        self.sensors = Sensors(u.sensors, self.dynamics.n_wheels, self.rng["sensors"])
+        self.oscillator = Oscillator(u.oscillator, self.rng["oscillator"], clock_jumps_s(u.faults))
+        self.link = SpaceLink(scenario.ground.link)
+        self.faults = FaultBook(u.faults)
+        self.dt_s = u.control_period_s
+        self.n_steps = int(round((u.end_s - u.start_s) / self.dt_s))
+        self.step = 0
+        self.t_s = u.start_s
+        self.state = self._initial_state()
+        self.torque_nm = np.zeros(self.dynamics.n_wheels)
+        self.frame_count = 0
+        self.last_frame: np.ndarray | None = None
+        self.ground_period_s = scenario.ground.step_period_s
+        self._next_ground_s = u.start_s
+        self._ground_step = 0
+        self._truth: list[TruthRecord] = []
+        self._log: list[str] = []
+        self._boresight = np.asarray(u.camera.boresight_body, dtype=float)
+        self._obt_s = self.oscillator.obt_s(self.t_s)
+        self.shapes = body_shapes(scenario.seed)
+
+    def _initial_state(self) -> AttitudeState:
+        sc = self.cfg.spacecraft
+        rng = self.rng["initial"]
+        los = self.geometry.truth_sample(self.t_s, np.array([0, 0, 0, 1.0]), np.array([0, 0, 1.0]), 90.0)
+        att = pointing_attitude(los.los_dimorphos_inertial, self.geometry.e_v)
+        axis = rng.standard_normal(3)
+        axis /= np.linalg.norm(axis)
+        error = Rotation.from_rotvec(np.radians(sc.initial_attitude_error_deg) * axis)
+        q = (att * error).as_quat()
+        return AttitudeState(
+            q=q,
+            omega_rad_s=np.radians(np.asarray(sc.initial_rate_deg_s, dtype=float)),
+            wheel_speed_rad_s=np.zeros(self.dynamics.n_wheels),
+        )
+
+    # -- OBSW side -----------------------------------------------------------------------------------------
+    def begin(self) -> tuple[StepRequest, bytes]:
+        """The request of step 0: sensors at the start time, no frame yet."""
+        self._log.extend(self.faults.transitions(self.t_s))
+        self._record_truth()
+        return self._request(frame_requested=False)
+
+    def advance(self, reply: StepReply) -> tuple[StepRequest, bytes] | None:
+        """Apply the OBSW's reply over one control period; return the next request, or None at the end."""
+        if len(reply.wheel_torque_nm) != self.dynamics.n_wheels:
+            raise ValueError(
+                f"StepReply {reply.step}: wheel_torque_nm has {len(reply.wheel_torque_nm)} values, "
+                f"expected {self.dynamics.n_wheels}"
+            )
+        self.link.downlink.send(self.t_s, reply.downlink, outage=bool(self.faults.active("link_outage", self.t_s)))
+        self.torque_nm = np.asarray(reply.wheel_torque_nm, dtype=float)
+        stuck = frozenset(f.wheel for f in self.faults.active("wheel_stuck", self.t_s) if f.wheel is not None)
+        failed = frozenset(f.wheel for f in self.faults.active("wheel_failed", self.t_s) if f.wheel is not None)
+        self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s, stuck, failed)
+        self.step += 1
+        self.t_s = self.cfg.start_s + self.step * self.dt_s
+        self._log.extend(self.faults.transitions(self.t_s))
+        self._obt_s = self.oscillator.obt_s(self.t_s)
+        self._record_truth()
+        if self.step >= self.n_steps:
+            return None
+        return self._request(frame_requested=reply.frame_request is not None,
+                             exposure_s=reply.frame_request.exposure_s if reply.frame_request else None)
+
+    def _request(self, frame_requested: bool, exposure_s: float | None = None) -> tuple[StepRequest, bytes]:
+        outage = bool(self.faults.active("star_tracker_outage", self.t_s))
+        bias = sum((np.radians(f.magnitude or 0.0) * np.ones(3) for f in self.faults.active("gyro_bias_step", self.t_s)),
+                   np.zeros(3))
+        r = self.sensors.measure(self.t_s, self.state, self.dt_s, star_tracker_out=outage, gyro_bias_step_rad_s=bias)
+        sensors = SensorData(
+            star_tracker_q=None if r.star_tracker_q is None else tuple(float(c) for c in r.star_tracker_q),
+            gyro_rad_s=tuple(float(c) for c in r.gyro_rad_s),
+            wheel_speed_rad_s=tuple(float(c) for c in r.wheel_speed_rad_s),
+        )
+        uplink = tuple(self.link.uplink.arrived(self.t_s))
+        meta, blob = (None, b"")
+        if frame_requested:
+            meta, blob = self._frame(exposure_s or self.cfg.camera.exposure_s)
+        return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta), blob
+
+    def _frame(self, exposure_s: float) -> tuple[FrameMeta | None, bytes]:
+        if self.faults.active("frame_lost", self.t_s):
+            self._log.append(f"frame lost at t={self.t_s:.2f} s (fault)")
+            return None, b""
+        pixels, dim, did = render_at(self, exposure_s)
+        self.last_frame = pixels
+        # the truth record of this period (already appended) gets the frame's true target positions
+        self._truth[-1] = self._truth[-1].model_copy(update={
+            "frame_id": self.frame_count, "dimorphos_px": dim, "didymos_px": did})
+        meta = FrameMeta(frame_id=self.frame_count, obt_s=self._obt_s, width=pixels.shape[1], height=pixels.shape[0],
+                         bit_depth=self.cfg.camera.bit_depth, exposure_s=exposure_s)
+        self.frame_count += 1
+        return meta, pixels.astype("<u2", copy=False).tobytes()
+
+    def _record_truth(self) -> None:
+        ts = self.geometry.truth_sample(self.t_s, self.state.q, self._boresight, self.cfg.camera.fov_deg)
+        self._truth.append(TruthRecord(
+            t_s=self.t_s, obt_s=self._obt_s,
+            q=tuple(float(c) for c in self.state.q),
+            omega_rad_s=tuple(float(c) for c in self.state.omega_rad_s),
+            wheel_momentum_nms=tuple(float(c) for c in self.dynamics.wheel_momentum_nms(self.state)),
+            wheel_torque_nm=tuple(float(c) for c in self.torque_nm),
+            pointing_error_rad=ts.pointing_error_rad, target_in_fov=ts.target_in_fov,
+            range_m=ts.range_to_dimorphos_m, theta_rad=ts.theta_rad, phase_angle_deg=ts.phase_angle_deg,
+        ))
+
+    def take_log(self) -> list[str]:
+        """Log lines produced since the last call (fault starts and ends, lost frames)."""
+        out, self._log = self._log, []
+        return out
+
+    # -- ground side ---------------------------------------------------------------------------------------
+    def ground_due(self) -> bool:
+        """Whether a ground exchange is due at the current true time."""
+        return self.t_s >= self._next_ground_s - 1e-9
+
+    def ground_step(self) -> GroundStep:
+        """The telemetry that reached the antenna and the truth recorded since the last ground step."""
+        arrived = self.link.downlink.arrived_timed(self.t_s)
+        msg = GroundStep(step=self._ground_step, utc_s=self.t_s, downlink=tuple(p for _, p in arrived),
+                         downlink_utc_s=tuple(t for t, _ in arrived), truth=tuple(self._truth))
+        self._truth = []
+        self._ground_step += 1
+        self._next_ground_s += self.ground_period_s
+        return msg
+
+    def drain(self) -> GroundStep | None:
+        """After the last control period: the next ground step while telemetry is still in flight, else None."""
+        if not self.link.downlink.in_flight and not self._truth:
+            return None
+        self.t_s = max(self.t_s, self._next_ground_s)  # true time runs on while the last packets travel
+        return self.ground_step()
+
+    def accept_ground(self, reply: GroundReply) -> None:
+        """Radiate ground's telecommands into the uplink."""
+        self.link.uplink.send(self.t_s, reply.uplink, outage=bool(self.faults.active("link_outage", self.t_s)))
