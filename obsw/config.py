@@ -149,12 +149,6 @@ class ImagingConfig(Frozen):
         description="largest major/minor axis ratio (second moments) of a body; a lit crescent at 135 deg "
         "phase is about 5, a thin plume ray or a smeared star more",
     )
-    max_didymos_jump_px: float = Field(
-        80.0,
-        gt=0,
-        description="largest Didymos motion between consecutive frames, px at 512 scale (paper: escape rate "
-        "< 0.4 deg/s, i.e. 71 px in a 1 s frame period)",
-    )
     dimorphos_max_separation_didymos_diameters: float = Field(
         2.0,
         gt=0,
@@ -165,8 +159,8 @@ class ImagingConfig(Frozen):
         0.5,
         gt=0,
         le=1,
-        description="largest Dimorphos/Didymos blob area ratio (diameters 164/780 m give 0.044; margin for "
-        "phase and a Didymos partly out of the frame)",
+        description="largest Dimorphos/Didymos blob area ratio when Dimorphos is first found (diameters 164/780 m "
+        "give 0.044; margin for phase, a Didymos partly out of the frame and plume dust merged with Dimorphos)",
     )
     dimorphos_min_peak_fraction: float = Field(
         0.3,

@@ -373,6 +373,22 @@ def _relative(blob: Blob, origin: Blob) -> tuple[float, float]:
     )
 
 
+def _continues_dimorphos_alone(blob: Blob, prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig) -> bool:
+    """Return whether ``blob`` is Dimorphos seen without Didymos: Dimorphos-like area, Didymos's centre off-image."""
+    area_vs_dim = abs(math.log(blob.area_px / prev_dim.area_px))
+    area_vs_did = abs(math.log(blob.area_px / prev_did.area_px))
+    rel = _relative(prev_dim, prev_did)
+    col = blob.centroid_col_row[0] - rel[0]
+    row = blob.centroid_col_row[1] - rel[1]
+    last = cfg.binned_size_px - 1
+    return area_vs_dim < area_vs_did and not (0.0 <= col <= last and 0.0 <= row <= last)
+
+
+def _relative_jump_px(didymos: Blob, cfg: ImagingConfig) -> float:
+    """Return the largest change between frames of the Dimorphos offset from this Didymos, px."""
+    return cfg.dimorphos_max_relative_jump_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+
+
 def _largest(blobs: list[Blob]) -> Blob:
     """Return the blob of largest area, the brighter peak breaking ties."""
     return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
@@ -385,13 +401,17 @@ def identify_bodies(
 
     Body candidates are blobs of at least ``min_body_area_px`` (rejects hot pixels, noise and faint stars) and
     at most ``max_body_elongation`` (rejects plume rays and smeared stars).
-    Didymos is the largest candidate; with a previous frame, candidates within ``max_didymos_jump_px`` of a
-    previous body go to the nearer one's track, so Didymos is the largest candidate that continues it, and a
-    frame where only the Dimorphos track continues (Didymos out of the field near C/A) reports Dimorphos alone.
+    Didymos is the largest candidate, unless the previous frame saw both bodies and this candidate continues
+    Dimorphos with Didymos out of the field: its area is nearer the previous Dimorphos area than the previous
+    Didymos one (in ratio) and the previous Didymos-to-Dimorphos offset puts Didymos's centre outside the image
+    (near C/A while tracking Dimorphos). Otherwise, with both seen before, Didymos is the largest candidate that
+    has another candidate where the previous Didymos-to-Dimorphos offset predicts Dimorphos (so a plume core
+    grown larger than Didymos is not taken for it). Continuity is on relative offsets, which pointing motion
+    does not change.
     Dimorphos is a smaller candidate (area at most ``dimorphos_max_area_fraction`` of Didymos, peak at least
     ``dimorphos_min_peak_fraction`` of Didymos's) within ``dimorphos_max_separation_didymos_diameters`` of
     Didymos; among those, the one whose offset from Didymos continues the previous one (stars move relative to
-    Didymos at the tracking rate), else the largest. A core cut out of the plume may exceed the area fraction:
+    Didymos at the tracking rate; this one may exceed the area limit), else the largest. A core cut out of the plume may exceed the area fraction:
     the ejecta leave Dimorphos, so after the impact its blob is Dimorphos with the dense ejecta around it, and
     its centroid is their common photocentre. Before Dimorphos is resolved (merged with Didymos or below the
     minimum area) it is None.
@@ -403,41 +423,38 @@ def identify_bodies(
         return None, None
     prev_did = previous.didymos if previous is not None else None
     prev_dim = previous.dimorphos if previous is not None else None
-    didymos: Blob | None = None
-    if prev_did is not None or prev_dim is not None:
-        did_track: list[Blob] = []
-        dim_track: list[Blob] = []
-        for b in candidates:
-            d_did = _distance(b.centroid_col_row, prev_did.centroid_col_row) if prev_did else math.inf
-            d_dim = _distance(b.centroid_col_row, prev_dim.centroid_col_row) if prev_dim else math.inf
-            if min(d_did, d_dim) > cfg.max_didymos_jump_px + cfg.centroid_noise_px:
-                continue
-            (did_track if d_did <= d_dim else dim_track).append(b)
-        if did_track:
-            didymos = _largest(did_track)
-        elif dim_track and prev_did is not None and prev_dim is not None:
-            # Didymos left the field (or fell below the threshold): only the Dimorphos track continues
-            return None, _largest(dim_track)
-    if didymos is None:
-        didymos = _largest(candidates)
+    didymos = _largest(candidates)
+    if prev_did is not None and prev_dim is not None:
+        if _continues_dimorphos_alone(didymos, prev_did, prev_dim, cfg):
+            return None, didymos
+        # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
+        predicted = _relative(prev_dim, prev_did)
+        paired = [
+            c
+            for c in candidates
+            if any(
+                d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in candidates
+            )
+        ]
+        if paired:
+            didymos = _largest(paired)
     gate = cfg.dimorphos_max_separation_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
     in_gate = [
         b
         for b in candidates
         if b is not didymos
-        and (b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px or b.split_from)
         and b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
         and _separation(b, didymos.centroid_col_row) <= gate
     ]
-    if not in_gate:
-        return didymos, None
     if prev_did is not None and prev_dim is not None:
         predicted = _relative(prev_dim, prev_did)
-        jump = cfg.dimorphos_max_relative_jump_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+        jump = _relative_jump_px(didymos, cfg)
         continuing = [b for b in in_gate if _distance(_relative(b, didymos), predicted) <= jump]
         if continuing:
+            # a continuing Dimorphos may outgrow the area limit: the plume's dense core grows around it
             return didymos, min(continuing, key=lambda b: _distance(_relative(b, didymos), predicted))
-    return didymos, _largest(in_gate)
+    sized = [b for b in in_gate if b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px or b.split_from]
+    return didymos, (_largest(sized) if sized else None)
 
 
 def blobs_of(

@@ -314,11 +314,21 @@ def test_continuity_prefers_the_true_dimorphos_over_a_bigger_star() -> None:
 
 
 def test_dimorphos_alone_when_didymos_leaves_the_field() -> None:
-    """When only the blob continuing Dimorphos remains, it is reported as Dimorphos, not as Didymos."""
-    prev = _detections(_blob(1, 20.0, 256.0, 9000, 140), _blob(2, 250.0, 260.0, 700, 30))
-    now = _blob(1, 252.0, 259.0, 720, 30)
+    """A Dimorphos-sized blob whose previous offset puts Didymos off-image is Dimorphos alone, else Didymos."""
+    prev = _detections(_blob(1, 15.0, 256.0, 1500, 40), _blob(2, 250.0, 260.0, 700, 30))
+    now = _blob(1, 230.0, 258.0, 720, 30)  # Didymos predicted at col -5: out of the field
     assert identify_bodies([now], CFG, prev) == (None, now)
     assert identify_bodies([now], CFG) == (now, None)
+    inside = _blob(1, 250.0, 258.0, 720, 30)  # Didymos predicted at col 15: in the field, so this is Didymos
+    assert identify_bodies([inside], CFG, prev) == (inside, None)
+
+
+def test_pointing_jitter_does_not_swap_the_bodies() -> None:
+    """Both bodies shifted together by 40 px (pointing motion) keep their identities."""
+    prev = _detections(_blob(1, 200.0, 250.0, 300, 20), _blob(2, 225.0, 250.0, 12, 4))
+    did = _blob(1, 225.0, 250.0, 310, 20)  # now where Dimorphos was
+    dim = _blob(2, 250.0, 250.5, 12, 4)
+    assert identify_bodies([dim, did], CFG, prev) == (did, dim)
 
 
 def test_stars_far_from_didymos_and_dim_or_elongated_blobs_are_not_dimorphos() -> None:
