@@ -12,8 +12,22 @@ from flyby.model import Frozen
 class ControlConfig(Frozen):
     """PD attitude control on quaternion error and body rate (paper: PD baseline, no integral term)."""
 
-    kp_nm_per_rad: float = Field(0.012, gt=0, description="proportional gain, N m per rad of attitude error")
-    kd_nms_per_rad: float = Field(0.09, gt=0, description="derivative gain, N m per rad/s of rate error")
+    # Worst case (paper: one gain set, tuned on the nearest C/A): 40 km at 7 km/s, peak LOS rate v/d = 0.175 rad/s
+    # (10 deg/s), peak LOS acceleration 0.65 (v/d)^2 = 0.020 rad/s^2, a slew about body Y (0.117 kg m^2): peak
+    # feedforward torque 0.117 x 0.020 = 0.0023 N m (33 % of one wheel's 0.007 N m), peak momentum 0.117 x 0.175 =
+    # 0.020 N m s (20 % of 0.1 N m s): feasible with margin for the PD's correction torques.
+    kp_nm_per_rad: float = Field(
+        0.26,
+        gt=0,
+        description="proportional gain, N m per rad of attitude error (wn = 1.5 rad/s about body Y, 0.117 kg m^2; "
+        "without feedforward the worst-case lag I alpha / kp would be 0.5 deg, with it < 0.02 deg)",
+    )
+    kd_nms_per_rad: float = Field(
+        0.32,
+        gt=0,
+        description="derivative gain, N m per rad/s of rate error (damping 0.9 about body Y, 0.8 about X, 1.3 "
+        "about Z; kd dt / I_z = 0.55 keeps the 10 Hz loop far from its sampling limit of 2)",
+    )
     feedforward: bool = Field(True, description="add the reference angular acceleration times inertia")
 
 

@@ -1,0 +1,167 @@
+"""Attitude control: PD on the quaternion error and body rate, and the torque split over the reaction wheels.
+
+Paper ("Attitude Control Module"): a PD baseline (the integral term did not improve pointing near C/A), one set
+of gains for every trajectory, tuned on the worst case (nearest C/A). Wheels: 0.007 N m and 0.1 N m s each.
+
+Sign convention: the torque commanded to a wheel accelerates its rotor (d h_wheel / dt = tau_wheel); the body
+receives the opposite, ``body torque = -A tau_wheel`` with ``A`` the 3xN matrix of unit wheel axes (columns).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from obsw.config import ControlConfig
+
+
+class AttitudeReference(Protocol):
+    """What the controller follows (obsw.tracking.Reference satisfies it)."""
+
+    q_des: NDArray[np.float64]
+    omega_des_body: NDArray[np.float64]
+    alpha_des_body: NDArray[np.float64]
+
+
+def _vector(name: str, value: ArrayLike, size: int) -> NDArray[np.float64]:
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (size,):
+        raise ValueError(f"{name} must have shape ({size},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite, got {arr}")
+    return arr
+
+
+def _unit_quaternion(name: str, value: ArrayLike) -> NDArray[np.float64]:
+    q = _vector(name, value, 4)
+    norm = float(np.sqrt(q @ q))
+    if norm < 1e-9:
+        raise ValueError(f"{name} must be a non-zero quaternion, got {q}")
+    return q / norm
+
+
+def _error_quaternion(q: NDArray[np.float64], q_des: NDArray[np.float64]) -> NDArray[np.float64]:
+    """conj(q_des) (x) q, scalar-last, with a non-negative scalar part (the shortest way round)."""
+    dx, dy, dz, dw = -q_des[0], -q_des[1], -q_des[2], q_des[3]
+    bx, by, bz, bw = q
+    e = np.array(
+        [
+            dw * bx + dx * bw + dy * bz - dz * by,
+            dw * by - dx * bz + dy * bw + dz * bx,
+            dw * bz + dx * by - dy * bx + dz * bw,
+            dw * bw - dx * bx - dy * by - dz * bz,
+        ]
+    )
+    return -e if e[3] < 0 else e
+
+
+def _rotvec(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation vector of a unit quaternion with non-negative scalar part, rad."""
+    v = e[:3]
+    s = float(np.sqrt(v @ v))
+    if s < 1e-12:
+        return 2.0 * v  # first order, exact to 1e-36
+    return v * (2.0 * np.arctan2(s, e[3]) / s)
+
+
+def _matrix(e: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation matrix of a unit quaternion (scalar-last)."""
+    x, y, z, w = e
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def attitude_error_rad(q: ArrayLike, q_des: ArrayLike) -> NDArray[np.float64]:
+    """Rotation vector of the body frame relative to the desired frame, rad (shortest way, |e| <= pi)."""
+    return _rotvec(_error_quaternion(_unit_quaternion("q", q), _unit_quaternion("q_des", q_des)))
+
+
+def pd_torque_nm(
+    q: ArrayLike,
+    omega_rad_s: ArrayLike,
+    ref: AttitudeReference,
+    inertia_kgm2: ArrayLike,
+    cfg: ControlConfig,
+    wheel_momentum_body_nms: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """Body torque, N m: ``-kp e - kd (omega - omega_des)`` plus, if ``cfg.feedforward``, the torque that makes the
+    reference an exact solution of Euler's equations.
+
+    ``q`` is the body->inertial attitude (scalar-last), ``omega_rad_s`` the body rate, ``ref`` the desired attitude
+    with its body rate and acceleration (in the desired frame). The feedforward is
+    ``I (C alpha_des - omega x C omega_des) + omega x (I omega + h_wheels)`` with ``C`` taking desired-frame vectors
+    to the body frame; with it the closed-loop error obeys ``I de'' + kd de' + kp e = 0`` for small errors.
+    ``wheel_momentum_body_nms`` (``A h``) adds the wheels' gyroscopic term; omit it for a wheel-less body.
+    """
+    inertia = np.asarray(inertia_kgm2, dtype=float)
+    if inertia.shape != (3, 3):
+        raise ValueError(f"inertia_kgm2 must be 3x3, got shape {inertia.shape}")
+    omega = _vector("omega_rad_s", omega_rad_s, 3)
+    omega_des = _vector("ref.omega_des_body", ref.omega_des_body, 3)
+    alpha_des = _vector("ref.alpha_des_body", ref.alpha_des_body, 3)
+    e_q = _error_quaternion(_unit_quaternion("q", q), _unit_quaternion("ref.q_des", ref.q_des))  # body -> desired
+    error = _rotvec(e_q)
+    to_body = _matrix(e_q).T
+    omega_des_b = to_body @ omega_des
+    rate_error = omega - omega_des_b
+    torque = -cfg.kp_nm_per_rad * error - cfg.kd_nms_per_rad * rate_error
+    if cfg.feedforward:
+        h_total = inertia @ omega
+        if wheel_momentum_body_nms is not None:
+            h_total = h_total + _vector("wheel_momentum_body_nms", wheel_momentum_body_nms, 3)
+        # d/dt of (C omega_des) in the body frame is C alpha_des - omega x C omega_des
+        torque = torque + inertia @ (to_body @ alpha_des - _cross(omega, omega_des_b)) + _cross(omega, h_total)
+    return torque
+
+
+def wheel_torques_nm(
+    body_torque_nm: ArrayLike,
+    wheel_axes: ArrayLike,
+    wheel_momentum_nms: ArrayLike,
+    max_torque_nm: float,
+    max_momentum_nms: float,
+) -> NDArray[np.float64]:
+    """Wheel torques, N m (N,), that give the body ``body_torque_nm`` (``-A tau = T``) within the wheel limits.
+
+    Minimum-norm split (pseudo-inverse) over the wheels that may take it: a wheel at or beyond
+    ``max_momentum_nms`` is not pushed further (it is dropped from the split when its share would speed it up).
+    If any wheel would exceed ``max_torque_nm`` all torques are scaled down by the same factor, so the body torque
+    keeps its direction. Without enough usable wheels to span the request, the least-squares torque is returned.
+    """
+    torque = _vector("body_torque_nm", body_torque_nm, 3)
+    axes = np.asarray(wheel_axes, dtype=float)
+    if axes.ndim != 2 or axes.shape[0] != 3 or axes.shape[1] < 1:
+        raise ValueError(f"wheel_axes must be 3xN with N >= 1, got shape {axes.shape}")
+    n = axes.shape[1]
+    momentum = _vector("wheel_momentum_nms", wheel_momentum_nms, n)
+    if not max_torque_nm > 0:
+        raise ValueError(f"max_torque_nm must be > 0, got {max_torque_nm}")
+    if not max_momentum_nms > 0:
+        raise ValueError(f"max_momentum_nms must be > 0, got {max_momentum_nms}")
+
+    usable = np.ones(n, dtype=bool)
+    tau = np.zeros(n)
+    for _ in range(n):
+        tau = np.zeros(n)
+        if usable.any():
+            tau[usable] = -np.linalg.pinv(axes[:, usable]) @ torque
+        # a saturated wheel may only be slowed down, never sped up further
+        pushing = usable & (np.abs(momentum) >= max_momentum_nms) & (tau * momentum > 0)
+        if not pushing.any():
+            break
+        usable &= ~pushing
+    peak = float(np.max(np.abs(tau)))
+    if peak > max_torque_nm:
+        tau *= max_torque_nm / peak
+    return tau
