@@ -17,9 +17,10 @@ Emulates the LICIACube pipeline (paper, "Imaging Subsystem"): steps 1-3 are the 
    overlapping runs of adjacent rows; labels are numbered in raster order of each component's first pixel.
 4. Feature extraction and identification: area, binary centroid (mean pixel position, pixel centres at
    integer coordinates, as OpenCV's connectedComponentsWithStats), bounding box, second-moment elongation,
-   mean and peak 8-bit brightness of every blob; then Didymos and Dimorphos are told from stars, hot pixels
-   and the plume by area, compactness, brightness, geometry and continuity with the previous frame
-   (see ``identify_bodies``).
+   mean and peak 8-bit brightness of every blob. A large blob whose pixels are mostly faint (the ejecta plume,
+   possibly merged with the bodies) is replaced by its cores above the Otsu threshold of its own pixels
+   (``split_diffuse_blobs``). Then Didymos and Dimorphos are told from stars, hot pixels and the plume by area,
+   compactness, brightness, geometry and continuity with the previous frame (see ``identify_bodies``).
 
 Image x (columns) is body +X, image y (rows) body +Y, the boresight body +Z; the image centre is at
 ((n - 1) / 2, (n - 1) / 2) in pixel-centre coordinates of the n x n binned image.
@@ -70,7 +71,7 @@ class Detections:
     dimorphos: Blob | None
     didymos_offset_px: tuple[float, float] | None  # (col, row) offset from the image centre, 512 scale
     dimorphos_offset_px: tuple[float, float] | None
-    didymos_offset_rad: tuple[float, float] | None  # atan(offset_px / f_px) about body +Y (col) and +X (row)
+    didymos_offset_rad: tuple[float, float] | None  # (atan(col offset / f_px), atan(row offset / f_px)), rad
     dimorphos_offset_rad: tuple[float, float] | None
     threshold_dn8: int  # foreground is above this 8-bit value
     background_dn8: int  # median of the 8-bit histogram
@@ -411,10 +412,10 @@ def identify_bodies(
     Dimorphos is a smaller candidate (area at most ``dimorphos_max_area_fraction`` of Didymos, peak at least
     ``dimorphos_min_peak_fraction`` of Didymos's) within ``dimorphos_max_separation_didymos_diameters`` of
     Didymos; among those, the one whose offset from Didymos continues the previous one (stars move relative to
-    Didymos at the tracking rate; this one may exceed the area limit), else the largest. A core cut out of the plume may exceed the area fraction:
-    the ejecta leave Dimorphos, so after the impact its blob is Dimorphos with the dense ejecta around it, and
-    its centroid is their common photocentre. Before Dimorphos is resolved (merged with Didymos or below the
-    minimum area) it is None.
+    Didymos at the tracking rate; this one may exceed the area limit), else the largest. A core cut out of the
+    plume may also exceed it, and is gated by its box rather than its centroid: the ejecta leave Dimorphos, so
+    after the impact its blob is Dimorphos with the dense ejecta around it, and its centroid is their common
+    photocentre. Before Dimorphos is resolved (merged with Didymos or below the minimum area) it is None.
     """
     candidates = [
         b for b in blobs if b.area_px >= cfg.min_body_area_px and b.elongation <= cfg.max_body_elongation

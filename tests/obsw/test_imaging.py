@@ -77,6 +77,15 @@ def test_binning_2048_is_the_rounded_block_mean() -> None:
     assert np.abs(ours.astype(np.int64) - reference_binned(frame, 512)).max() <= 1
 
 
+def test_2048_frame_of_replicated_pixels_gives_the_1024_detections() -> None:
+    """A 2048 frame whose 2x2 blocks repeat a 1024 frame's pixels bins to the same image and the same blobs."""
+    bodies = _pair(500.0, 520.0, 40.0, (110.0, 40.0))
+    small = synthetic_frame(np.random.default_rng(3), bodies=bodies)
+    large = np.kron(small, np.ones((2, 2), dtype=np.uint16))
+    np.testing.assert_array_equal(binned(large, CFG), binned(small, CFG))
+    assert process_frame(large, CFG) == process_frame(small, CFG)
+
+
 @pytest.mark.parametrize("law", ["sqrt", "shift"])
 def test_compression_equals_opencv_law(law: str) -> None:
     """The 8-bit table equals the OpenCV computation of the same law on every 12-bit value, and is monotonic."""
