@@ -38,7 +38,8 @@ def _unit_and_orthogonal(e_v: ArrayLike, e_ca: ArrayLike) -> tuple[Vec3, Vec3]:
     c = c - float(c @ v) * v
     nc = float(np.linalg.norm(c))
     if nc < _DEGENERATE:
-        raise ValueError(f"ca_direction {tuple(np.asarray(e_ca, dtype=float))} must not be parallel to approach_direction")
+        given = tuple(np.asarray(e_ca, dtype=float))
+        raise ValueError(f"ca_direction {given} must not be parallel to approach_direction")
     c = c / nc
     return (float(v[0]), float(v[1]), float(v[2])), (float(c[0]), float(c[1]), float(c[2]))
 

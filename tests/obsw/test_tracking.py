@@ -53,7 +53,7 @@ def _run(offset_rad, t0: float, duration_s: float, dt_s: float, frame_every: int
 
 @pytest.mark.parametrize("frame_every", [1, 10, 25])
 def test_step_offset_follows_the_analytic_second_order_response(frame_every: int) -> None:
-    """A constant LOS offset is removed exactly as 1 - e^{-zeta wn t}(cos wd t - zeta wn/wd sin wd t), any frame rate."""
+    """A constant offset is removed exactly as 1 - e^{-zeta wn t}(cos wd t - zeta wn/wd sin wd t), any frame rate."""
     x0 = 0.01
     for t, ref in _run(lambda t: x0, -200.0, 40.0, 0.1, frame_every):
         achieved = _signed_angle(TRAJ.los_inertial(t), ref.los_commanded_inertial, TRAJ.plane_normal)
@@ -64,7 +64,9 @@ def test_step_overshoot_is_that_of_a_type_2_loop() -> None:
     """The correction overshoots by the closed-form peak of the PI-loop step response (18 % at zeta 0.8)."""
     x0 = 0.02
     run = _run(lambda t: x0, -240.0, 40.0, 0.05, 20)
-    achieved = np.array([_signed_angle(TRAJ.los_inertial(t), r.los_commanded_inertial, TRAJ.plane_normal) for t, r in run])
+    achieved = np.array(
+        [_signed_angle(TRAJ.los_inertial(t), r.los_commanded_inertial, TRAJ.plane_normal) for t, r in run]
+    )
     # e(t) = x0 e^{-s t}(cos wd t - s/wd sin wd t) has its first minimum where e' = 0: tan(wd t) = -2 s wd/(wd^2 - s^2)
     s = ZETA * WN
     t_peak = (np.pi + np.arctan2(-2 * s * WD, WD**2 - s**2)) / WD
@@ -103,7 +105,7 @@ def test_constant_acceleration_offset_leaves_a_over_wn_squared() -> None:
 
 
 def test_without_measurements_the_reference_is_the_trajectory() -> None:
-    """No image: boresight on the predicted LOS, plane-normal axis on the normal, omega = theta' p, alpha = theta'' p."""
+    """No image: boresight on the predicted LOS, normal axis on the normal, omega = theta' p, alpha = theta'' p."""
     loop = TrackingLoop(CFG)
     p = np.array(CFG.plane_normal_axis_body)
     for t in np.arange(-30.0, 30.0, 0.5):

@@ -86,7 +86,7 @@ def test_los_accel_matches_finite_difference_of_the_rate(obt_s: float) -> None:
 
 
 def test_peak_rate_and_accel_of_the_worst_case_flyby() -> None:
-    """At 40 km and 7 km/s the peak rate is v/d (10 deg/s) and the peak accel 3 sqrt(3)/8 (v/d)^2 at v tau = d/sqrt 3."""
+    """At 40 km, 7 km/s: peak rate v/d (10 deg/s), peak accel 3 sqrt(3)/8 (v/d)^2 at v tau = -d/sqrt 3."""
     t = _trajectory(ca_time=0.0, d_km=40.0)
     w = 7.0 / 40.0
     grid = np.linspace(-300.0, 300.0, 600001)

@@ -1,0 +1,211 @@
+"""Trajectory recognition: which (C/A time, C/A distance) explains the measured line-of-sight angles.
+
+Paper ("Tracking and Trajectory Recognition Module"): a precomputed set of candidate trajectories around the
+nominal one, each a pair (t_CA, d_CA); the best is the one with the least mean square error between the measured
+LOS angle (from the centroid, turned into the inertial frame with the attitude) and each candidate's prediction.
+
+What the LOS direction alone observes: theta(t) = atan2(d, -v (t - t_ca)) fixes t_ca and d / v; the speed is
+taken from ground, so d follows. The C/A time is in OBT: any clock offset is absorbed in it.
+
+Beside the grid, a continuous estimate: the maximum a posteriori (t_ca, d) under the ground's Gaussian prior and
+Gaussian angle noise, by Gauss-Newton from the best candidate, with the residuals beyond a gate ignored, and the
+covariance of that estimate (the inverse of the Fisher information plus the prior's).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from obsw.config import RecognitionConfig
+from obsw.trajectory import NominalTrajectory
+
+
+def measured_theta_rad(trajectory: NominalTrajectory, los_inertial: ArrayLike) -> float:
+    """In-plane LOS angle from the relative velocity, rad: atan2(-los . e_ca, los . e_v) (out-of-plane part ignored)."""
+    los = np.asarray(los_inertial, dtype=float)
+    return float(np.arctan2(-(los @ trajectory.e_ca), los @ trajectory.e_v))
+
+
+def _theta(times_s: NDArray, ca_time_s: NDArray | float, ca_distance_m: NDArray | float, speed_m_s: float) -> NDArray:
+    return np.arctan2(ca_distance_m, -speed_m_s * (times_s - ca_time_s))
+
+
+class TrajectoryRecognizer:
+    """Grid and continuous recognition of the C/A time (OBT) and distance. Pure: time and inputs are arguments."""
+
+    def __init__(self, nominal: NominalTrajectory, cfg: RecognitionConfig) -> None:
+        self.nominal = nominal
+        self.cfg = cfg
+        k = cfg.grid_span_sigma
+        self._times_s = nominal.ca_time_obt_s + np.linspace(-k, k, cfg.grid_time_points) * nominal.ca_time_sigma_s
+        self._distances_km = nominal.ca_distance_km + np.linspace(-k, k, cfg.grid_distance_points) * (
+            nominal.ca_distance_sigma_km
+        )
+        if self._distances_km[0] <= 0:
+            raise ValueError(
+                f"grid_span_sigma {k} x ca_distance_sigma_km {nominal.ca_distance_sigma_km} reaches a C/A distance "
+                f"of {self._distances_km[0]:.3f} km <= 0 below the nominal {nominal.ca_distance_km} km"
+            )
+        grid_t, grid_d = np.meshgrid(self._times_s, self._distances_km * 1e3, indexing="ij")
+        self._cand_t = grid_t.ravel()
+        self._cand_d_m = grid_d.ravel()
+        # ties (e.g. before any measurement) go to the candidate nearest the nominal, in sigmas
+        u, w = np.meshgrid(
+            np.linspace(-k, k, cfg.grid_time_points), np.linspace(-k, k, cfg.grid_distance_points), indexing="ij"
+        )
+        self._tie_order = np.lexsort(((u**2 + w**2).ravel(),))
+        self._sum_sq = np.zeros(self._cand_t.size)
+        self._meas_t: list[float] = []
+        self._meas_theta: list[float] = []
+        self._solved: tuple[int, tuple[float, float, NDArray[np.float64]]] | None = None
+
+    # --- measurements --------------------------------------------------------------------------------------------
+
+    @property
+    def measurement_count(self) -> int:
+        """Number of measurements accumulated."""
+        return len(self._meas_t)
+
+    def add_measurement(self, obt_s: float, los_inertial: ArrayLike) -> None:
+        """Accumulate one measured LOS (inertial unit vector spacecraft -> target, ``R(q) @ los_body``) at ``obt_s``.
+
+        O(candidates): each candidate's capped squared residual is added to its running sum.
+        """
+        los = np.asarray(los_inertial, dtype=float)
+        if los.shape != (3,) or not np.all(np.isfinite(los)) or abs(float(np.linalg.norm(los)) - 1.0) > 1e-6:
+            raise ValueError(f"los_inertial must be a finite unit 3-vector, got {los_inertial}")
+        if not np.isfinite(obt_s):
+            raise ValueError(f"obt_s must be finite, got {obt_s}")
+        theta = measured_theta_rad(self.nominal, los)
+        residual = theta - _theta(np.float64(obt_s), self._cand_t, self._cand_d_m, self.nominal.speed_m_s)
+        self._sum_sq += np.minimum(residual**2, self.cfg.residual_cap_rad**2)
+        self._meas_t.append(float(obt_s))
+        self._meas_theta.append(theta)
+
+    # --- grid ----------------------------------------------------------------------------------------------------
+
+    def candidate_axes(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The grid's C/A times (OBT s) and C/A distances (km); candidate (i, j) pairs times[i] with distances[j]."""
+        return self._times_s.copy(), self._distances_km.copy()
+
+    def mse_grid(self) -> NDArray[np.float64]:
+        """Mean capped squared residual of every candidate, rad^2, shape (time points, distance points)."""
+        n = max(self.measurement_count, 1)
+        return (self._sum_sq / n).reshape(self.cfg.grid_time_points, self.cfg.grid_distance_points)
+
+    def best_grid(self) -> tuple[float, float, float]:
+        """(C/A time OBT s, C/A distance km, mean square error rad^2) of the best candidate; the nominal (and an
+        mse of nan) before any measurement."""
+        if not self._meas_t:
+            return self.nominal.ca_time_obt_s, self.nominal.ca_distance_km, float("nan")
+        mse = self._sum_sq / self.measurement_count
+        ordered = self._tie_order[np.argsort(mse[self._tie_order], kind="stable")]
+        best = int(ordered[0])
+        return float(self._cand_t[best]), float(self._cand_d_m[best] / 1e3), float(mse[best])
+
+    def best_trajectory(self) -> NominalTrajectory:
+        """The nominal trajectory moved to the best candidate's C/A time and distance."""
+        t, d, _ = self.best_grid()
+        return self.nominal.with_ca(t, d)
+
+    # --- continuous estimate ---------------------------------------------------------------------------------------
+
+    def continuous(self) -> tuple[float, float, NDArray[np.float64]]:
+        """(C/A time OBT s, C/A distance km, covariance 2x2 in s^2, s km, km^2) of the MAP estimate.
+
+        Before any measurement: the nominal and its prior covariance.
+        """
+        if self._solved is not None and self._solved[0] == self.measurement_count:
+            t, d, cov = self._solved[1]
+            return t, d, cov.copy()
+        result = self._solve()
+        self._solved = (self.measurement_count, result)
+        return result[0], result[1], result[2].copy()
+
+    def continuous_trajectory(self) -> NominalTrajectory:
+        """The nominal trajectory moved to the continuous estimate, with its one-sigma uncertainties."""
+        t, d, cov = self.continuous()
+        return NominalTrajectory(
+            **{
+                **self.nominal.model_dump(),
+                "ca_time_obt_s": t,
+                "ca_distance_km": d,
+                "ca_time_sigma_s": float(np.sqrt(max(cov[0, 0], 0.0))),
+                "ca_distance_sigma_km": float(np.sqrt(max(cov[1, 1], 0.0))),
+            }
+        )
+
+    def _solve(self) -> tuple[float, float, NDArray[np.float64]]:
+        nom = self.nominal
+        sig_t, sig_d_m = nom.ca_time_sigma_s, nom.ca_distance_sigma_km * 1e3
+        prior_cov = np.diag([sig_t**2, (sig_d_m / 1e3) ** 2])
+        if not self._meas_t:
+            return nom.ca_time_obt_s, nom.ca_distance_km, prior_cov
+        times = np.asarray(self._meas_t)
+        theta = np.asarray(self._meas_theta)
+        free = np.array([sig_t > 0, sig_d_m > 0])
+        # work in sigmas of the prior (u for time, w for distance): well scaled, prior term is |x|^2
+        scale = np.array([sig_t if free[0] else 1.0, sig_d_m if free[1] else 1.0])
+        origin = np.array([nom.ca_time_obt_s, nom.ca_distance_m])
+        t0, d0_km, _ = self.best_grid()
+        x = (np.array([t0, d0_km * 1e3]) - origin) / scale
+        x[~free] = 0.0
+        # first with the grid's wide cap (robust start), then with the tight noise gate around that solution
+        for gate in (self.cfg.residual_cap_rad, self.cfg.outlier_gate_sigma * self.cfg.angle_noise_rad):
+            inliers = np.ones(times.size, dtype=bool)
+            for _ in range(5):
+                x = self._gauss_newton(x, origin, scale, free, times[inliers], theta[inliers])
+                new = np.abs(theta - self._predict(x, origin, scale, times)) <= gate
+                if np.array_equal(new, inliers) or not new.any():
+                    break
+                inliers = new
+        jac = self._jacobian(x, origin, scale, times[inliers]) / self.cfg.angle_noise_rad
+        info = jac[:, free].T @ jac[:, free] + np.eye(int(free.sum()))
+        cov_scaled = np.zeros((2, 2))
+        cov_scaled[np.ix_(free, free)] = np.linalg.inv(info)
+        to_units = np.diag([scale[0], scale[1] / 1e3])  # s and km
+        t, d_m = origin + x * scale
+        return float(t), float(d_m / 1e3), to_units @ cov_scaled @ to_units
+
+    def _predict(self, x: NDArray, origin: NDArray, scale: NDArray, times: NDArray) -> NDArray:
+        t_ca, d_m = origin + x * scale
+        return _theta(times, t_ca, d_m, self.nominal.speed_m_s)
+
+    def _jacobian(self, x: NDArray, origin: NDArray, scale: NDArray, times: NDArray) -> NDArray:
+        """d theta / d (u, w): d theta/d t_ca = -v d / r^2, d theta/d d = -v tau / r^2, r^2 = d^2 + v^2 tau^2."""
+        t_ca, d_m = origin + x * scale
+        v = self.nominal.speed_m_s
+        tau = times - t_ca
+        r2 = d_m * d_m + (v * tau) ** 2
+        return np.column_stack([-v * d_m / r2 * scale[0], -v * tau / r2 * scale[1]])
+
+    def _gauss_newton(
+        self, x: NDArray, origin: NDArray, scale: NDArray, free: NDArray, times: NDArray, theta: NDArray
+    ) -> NDArray:
+        """Minimise |(theta - pred) / sigma|^2 + |x|^2 over the free parameters, with step halving."""
+        sigma = self.cfg.angle_noise_rad
+
+        def cost(p: NDArray) -> float:
+            r = (theta - self._predict(p, origin, scale, times)) / sigma
+            return float(r @ r + p[free] @ p[free])
+
+        current = cost(x)
+        for _ in range(self.cfg.max_iterations):
+            r = (theta - self._predict(x, origin, scale, times)) / sigma
+            jac = self._jacobian(x, origin, scale, times)[:, free] / sigma
+            step = np.zeros(2)
+            step[free] = np.linalg.solve(jac.T @ jac + np.eye(int(free.sum())), jac.T @ r - x[free])
+            length = 1.0
+            while True:
+                trial = x + length * step
+                # a candidate distance must stay positive: theta is undefined through d = 0
+                if origin[1] + trial[1] * scale[1] > 0 and (new := cost(trial)) <= current:
+                    break
+                length *= 0.5
+                if length < 1e-6:
+                    return x
+            x, improvement, current = trial, current - new, new
+            if improvement <= 1e-12 * max(current, 1.0) or float(np.max(np.abs(length * step))) < 1e-10:
+                break
+        return x

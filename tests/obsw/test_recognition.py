@@ -1,0 +1,213 @@
+"""Trajectory recognition against brute-force recomputation, an independent least-squares solver and the noise."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from obsw.config import RecognitionConfig
+from obsw.recognition import TrajectoryRecognizer, measured_theta_rad
+from obsw.trajectory import NominalTrajectory
+
+NOMINAL = NominalTrajectory(
+    ca_time_obt_s=1000.0,
+    ca_distance_km=55.0,
+    speed_km_s=7.0,
+    approach_direction=(1.0, 0.2, 0.0),
+    ca_direction=(0.0, 1.0, 0.3),
+    ca_time_sigma_s=10.0,
+    ca_distance_sigma_km=5.0,
+)
+# centroid (1 px of 512 over 2.9 deg, 9.9e-5 rad) and star tracker (6 arcsec, 2.9e-5 rad) in quadrature
+CENTROID_SIGMA, ATTITUDE_SIGMA = 9.9e-5, 2.9e-5
+SIGMA = float(np.hypot(CENTROID_SIGMA, ATTITUDE_SIGMA))
+CFG = RecognitionConfig(angle_noise_rad=SIGMA)
+TIMES = np.arange(1000.0 - 240.0, 1000.0 - 30.0, 1.0)  # acquisition to autonomous tracking, one frame a second
+
+
+def _measured_los(truth: NominalTrajectory, t: float, rng: np.random.Generator) -> np.ndarray:
+    """LOS as the OBSW forms it: R(q_est) (los_body + centroid noise), with q_est = q_true perturbed."""
+    q_true = Rotation.from_rotvec(rng.normal(0.0, 0.3, 3))  # any attitude: the result must not depend on it
+    los_body = q_true.inv().apply(truth.los_inertial(t))
+    los_body = los_body + np.array([*rng.normal(0.0, CENTROID_SIGMA, 2), 0.0]) * los_body[2]
+    los_body /= np.linalg.norm(los_body)
+    q_est = q_true * Rotation.from_rotvec(rng.normal(0.0, ATTITUDE_SIGMA, 3))
+    return q_est.apply(los_body)
+
+
+def _fed(truth: NominalTrajectory, seed: int, cfg: RecognitionConfig = CFG) -> TrajectoryRecognizer:
+    rng = np.random.default_rng(seed)
+    rec = TrajectoryRecognizer(NOMINAL, cfg)
+    for t in TIMES:
+        rec.add_measurement(float(t), _measured_los(truth, float(t), rng))
+    return rec
+
+
+def _cell(rec: TrajectoryRecognizer, t: float, d_km: float) -> tuple[int, int]:
+    times, dists = rec.candidate_axes()
+    return int(np.argmin(np.abs(times - t))), int(np.argmin(np.abs(dists - d_km)))
+
+
+def test_without_measurements_the_nominal_is_returned() -> None:
+    """No measurement: the grid gives the nominal (mse nan) and the continuous estimate the nominal and its prior."""
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    t, d, mse = rec.best_grid()
+    assert (t, d) == (1000.0, 55.0) and np.isnan(mse)
+    t, d, cov = rec.continuous()
+    assert (t, d) == (1000.0, 55.0)
+    assert np.allclose(cov, np.diag([100.0, 25.0]))
+    assert rec.best_trajectory() == NOMINAL
+
+
+def test_grid_is_centred_on_the_nominal_and_spans_k_sigma() -> None:
+    """13 x 13 candidates from -3 to +3 sigma, the nominal in the middle."""
+    times, dists = TrajectoryRecognizer(NOMINAL, CFG).candidate_axes()
+    assert np.allclose(times, np.linspace(970.0, 1030.0, 13))
+    assert np.allclose(dists, np.linspace(40.0, 70.0, 13))
+    assert times[6] == 1000.0 and dists[6] == 55.0
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(-2.9, 2.9), st.floats(-2.9, 2.9), st.integers(0, 2**32 - 1))
+def test_grid_picks_the_candidate_nearest_the_truth(u: float, w: float, seed: int) -> None:
+    """With the truth inside the grid the best candidate is the nearest one, or its neighbour."""
+    truth = NOMINAL.with_ca(1000.0 + 10.0 * u, 55.0 + 5.0 * w)
+    rec = _fed(truth, seed)
+    t, d, _ = rec.best_grid()
+    got, nearest = _cell(rec, t, d), _cell(rec, truth.ca_time_obt_s, truth.ca_distance_km)
+    assert abs(got[0] - nearest[0]) <= 1 and abs(got[1] - nearest[1]) <= 1
+
+
+def test_mse_grid_equals_a_brute_force_recomputation() -> None:
+    """The running sums equal the capped mean square residual recomputed from each candidate's own theta(t)."""
+    truth = NOMINAL.with_ca(1013.0, 50.9)
+    rng = np.random.default_rng(3)
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    measured = []
+    for t in TIMES:
+        los = _measured_los(truth, float(t), rng)
+        rec.add_measurement(float(t), los)
+        in_plane = los - (los @ NOMINAL.plane_normal) * NOMINAL.plane_normal  # the angle is taken in the flyby plane
+        measured.append(np.arccos(np.clip(NOMINAL.e_v @ in_plane / np.linalg.norm(in_plane), -1.0, 1.0)))
+    times, dists = rec.candidate_axes()
+    expected = np.empty((times.size, dists.size))
+    for i, tc in enumerate(times):
+        for j, dc in enumerate(dists):
+            r = np.asarray(measured) - NOMINAL.with_ca(tc, dc).theta_rad(TIMES)
+            expected[i, j] = np.mean(np.minimum(r**2, CFG.residual_cap_rad**2))
+    assert np.allclose(rec.mse_grid(), expected, rtol=1e-6, atol=1e-12)
+    t, d, mse = rec.best_grid()
+    i, j = np.unravel_index(np.argmin(expected), expected.shape)
+    assert (t, d) == (times[i], dists[j]) and mse == pytest.approx(expected[i, j], rel=1e-6)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_continuous_estimate_is_within_its_noise_bound(seed: int) -> None:
+    """The continuous C/A time and distance are within 4 sigma of the truth, sigma from the Cramer-Rao bound."""
+    truth = NOMINAL.with_ca(1013.0, 50.9)
+    t, d, cov = _fed(truth, seed).continuous()
+    # Cramer-Rao bound computed here from finite differences of theta and the ground prior
+    h_t, h_d = 1e-3, 1e-3
+    jac = np.column_stack(
+        [
+            (truth.with_ca(1013.0 + h_t, 50.9).theta_rad(TIMES) - truth.with_ca(1013.0 - h_t, 50.9).theta_rad(TIMES))
+            / (2 * h_t),
+            (truth.with_ca(1013.0, 50.9 + h_d).theta_rad(TIMES) - truth.with_ca(1013.0, 50.9 - h_d).theta_rad(TIMES))
+            / (2 * h_d),
+        ]
+    )
+    crb = np.linalg.inv(jac.T @ jac / SIGMA**2 + np.diag([1 / 100.0, 1 / 25.0]))
+    assert np.allclose(cov, crb, rtol=1e-3)
+    assert abs(t - 1013.0) < 4 * np.sqrt(crb[0, 0])
+    assert abs(d - 50.9) < 4 * np.sqrt(crb[1, 1])
+    assert np.sqrt(crb[0, 0]) < 0.05 and np.sqrt(crb[1, 1]) < 0.05  # tens of ms and tens of metres
+
+
+def test_continuous_estimate_matches_scipy_least_squares() -> None:
+    """The Gauss-Newton MAP estimate is the minimum scipy.optimize.least_squares finds on the same cost."""
+    truth = NOMINAL.with_ca(992.0, 61.0)
+    rng = np.random.default_rng(11)
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    theta = []
+    for t in TIMES:
+        los = _measured_los(truth, float(t), rng)
+        rec.add_measurement(float(t), los)
+        theta.append(measured_theta_rad(NOMINAL, los))
+    theta_arr = np.asarray(theta)
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        model = NOMINAL.with_ca(p[0], p[1]).theta_rad(TIMES)
+        return np.concatenate([(theta_arr - model) / SIGMA, [(p[0] - 1000.0) / 10.0, (p[1] - 55.0) / 5.0]])
+
+    ref = least_squares(residuals, x0=[1000.0, 55.0], x_scale=[10.0, 5.0], xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    t, d, _ = rec.continuous()
+    assert t == pytest.approx(ref.x[0], abs=1e-6)
+    assert d == pytest.approx(ref.x[1], abs=1e-6)
+
+
+def _fed_with_outliers(truth: NominalTrajectory, cfg: RecognitionConfig) -> TrajectoryRecognizer:
+    """Five frames where another blob a FOV half-width (1.4 deg) away in the flyby plane was taken for Dimorphos."""
+    rng = np.random.default_rng(5)
+    rec = TrajectoryRecognizer(NOMINAL, cfg)
+    wrong = set(range(20, 200, 40))
+    for k, t in enumerate(TIMES):
+        los = _measured_los(truth, float(t), rng)
+        if k in wrong:
+            los = Rotation.from_rotvec(np.radians(1.4) * NOMINAL.plane_normal).apply(los)
+        rec.add_measurement(float(t), los)
+    return rec
+
+
+def test_outliers_do_not_flip_the_choice() -> None:
+    """A few false detections change neither the grid choice nor the continuous fix (they would, uncapped)."""
+    truth = NOMINAL.with_ca(1007.0, 57.2)
+    clean = _fed(truth, 5)
+    dirty = _fed_with_outliers(truth, CFG)
+    assert dirty.best_grid()[:2] == clean.best_grid()[:2]
+    t, d, cov = dirty.continuous()
+    assert abs(t - 1007.0) < 4 * np.sqrt(cov[0, 0]) and abs(d - 57.2) < 4 * np.sqrt(cov[1, 1])
+    # the same data without the cap and the gate: the outliers do move both estimates
+    uncapped = RecognitionConfig(angle_noise_rad=SIGMA, residual_cap_rad=10.0, outlier_gate_sigma=1e6)
+    naive = _fed_with_outliers(truth, uncapped)
+    assert naive.best_grid()[:2] != clean.best_grid()[:2]
+    t, d, cov = naive.continuous()
+    assert abs(t - 1007.0) > 10 * np.sqrt(cov[0, 0])
+
+
+def test_clock_offset_is_absorbed_in_the_ca_time() -> None:
+    """Measurements stamped by a clock running 25 s ahead give a C/A time 25 s later in OBT, the same distance."""
+    truth = NOMINAL.with_ca(1004.0, 53.0)
+    rng = np.random.default_rng(8)
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    for t in TIMES[::2]:
+        rec.add_measurement(float(t) + 25.0, _measured_los(truth, float(t), rng))
+    t, d, cov = rec.continuous()
+    assert abs(t - 1029.0) < 4 * np.sqrt(cov[0, 0]) and abs(d - 53.0) < 4 * np.sqrt(cov[1, 1])
+
+
+def test_zero_sigma_fixes_that_parameter() -> None:
+    """A zero one-sigma uncertainty pins that parameter to the nominal, with zero variance."""
+    nominal = NOMINAL.model_copy(update={"ca_distance_sigma_km": 0.0})
+    truth = nominal.with_ca(1006.0, 55.0)
+    rng = np.random.default_rng(2)
+    rec = TrajectoryRecognizer(nominal, CFG)
+    for t in TIMES[::3]:
+        rec.add_measurement(float(t), _measured_los(truth, float(t), rng))
+    t, d, cov = rec.continuous()
+    assert d == 55.0 and cov[1, 1] == 0.0 and cov[0, 1] == 0.0
+    assert abs(t - 1006.0) < 4 * np.sqrt(cov[0, 0])
+    assert rec.best_grid()[1] == 55.0
+
+
+def test_bad_inputs_are_rejected_with_the_field_named() -> None:
+    """A grid reaching a non-positive distance, or a non-unit LOS, raises ValueError naming it."""
+    with pytest.raises(ValueError, match="ca_distance_sigma_km"):
+        TrajectoryRecognizer(NOMINAL.model_copy(update={"ca_distance_sigma_km": 20.0}), CFG)
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    with pytest.raises(ValueError, match="los_inertial"):
+        rec.add_measurement(900.0, [0.0, 0.0, 2.0])
+    assert rec.measurement_count == 0
