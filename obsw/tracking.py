@@ -221,9 +221,13 @@ class TrackingLoop:
         dt_s: float,
         trajectory: NominalTrajectory,
         los_measured_inertial: ArrayLike | None,
+        measured_obt_s: float | None = None,
     ) -> Reference:
         """Advance the loop by ``dt_s`` to ``obt_s``, take the measured LOS (inertial unit vector, or None when the
-        target was not seen) taken at ``obt_s``, and return the reference at ``obt_s``.
+        target was not seen), and return the reference at ``obt_s``.
+
+        ``measured_obt_s`` is when the frame was exposed (default ``obt_s``): the offset is taken against the
+        trajectory at that time, since near C/A the LOS turns 1 deg in one 0.1 s control period.
 
         ``dt_s`` (the control period) drives the loop, ``obt_s`` the trajectory, so an OBT jump does not make the
         loop integrate over the jump. The first call starts the loop at ``obt_s`` and ignores ``dt_s``. A change
@@ -237,6 +241,8 @@ class TrackingLoop:
             norm = float(np.linalg.norm(los)) if los.shape == (3,) else 0.0
             if los.shape != (3,) or not np.isfinite(norm) or abs(norm - 1.0) > 1e-6:
                 raise ValueError(f"los_measured_inertial must be a unit 3-vector, got {los_measured_inertial}")
+            if measured_obt_s is not None and not (np.isfinite(measured_obt_s) and measured_obt_s <= obt_s):
+                raise ValueError(f"measured_obt_s {measured_obt_s} must be finite and not after obt_s {obt_s}")
         if self._t is None:
             self._t = 0.0
         else:
@@ -247,7 +253,8 @@ class TrackingLoop:
             self._propagate(dt_s)
         self._obt = float(obt_s)
         if los is not None:
-            self._meas = [*self._meas[-1:], (self._t, self._obt, los)]
+            taken = self._obt if measured_obt_s is None else float(measured_obt_s)
+            self._meas = [*self._meas[-1:], (self._t - (self._obt - taken), taken, los)]
         if los is not None or trajectory != self._trajectory:
             self._line = self._input_line(trajectory)
         self._trajectory = trajectory

@@ -190,6 +190,20 @@ def test_switching_trajectory_keeps_the_reference_continuous() -> None:
     assert np.degrees(np.arccos(np.clip(ref.los_commanded_inertial @ truth.los_inertial(t), -1, 1))) < 0.01
 
 
+def test_frame_time_stamp_removes_the_latency_offset_near_ca() -> None:
+    """A perfect frame exposed 0.1 s before it is used gives no correction when stamped with its exposure time."""
+    loop, late = TrackingLoop(CFG), TrackingLoop(CFG)
+    dt = 0.1
+    for k in range(51):
+        t = -2.5 + k * dt
+        frame = TRAJ.los_inertial(t - dt) if k % 5 == 0 else None
+        loop.update(t, dt, TRAJ, frame, measured_obt_s=t - dt)
+        late.update(t, dt, TRAJ, frame)
+    assert np.linalg.norm(loop.correction_rotvec) < 1e-12
+    # unstamped, the frame looks a LOS-rate x latency (~1 deg at C/A) behind: the loop chases that
+    assert np.linalg.norm(late.correction_rotvec) > 0.5 * TRAJ.los_rate_rad_s(0.0) * dt
+
+
 def test_predicted_attitude_honours_other_boresights() -> None:
     """With a boresight along body -X and the normal axis along body +Z the triad still maps them exactly."""
     cfg = TrackingConfig(boresight_body=(-2.0, 0.0, 0.0), plane_normal_axis_body=(0.0, 0.0, 3.0))
@@ -206,3 +220,5 @@ def test_bad_inputs_are_rejected_with_the_field_named() -> None:
         loop.update(0.1, 0.1, TRAJ, [0.0, 0.0, 2.0])
     with pytest.raises(ValueError, match="dt_s"):
         loop.update(0.2, -0.1, TRAJ, None)
+    with pytest.raises(ValueError, match="measured_obt_s"):
+        loop.update(0.3, 0.1, TRAJ, TRAJ.los_inertial(0.3), measured_obt_s=0.4)
