@@ -17,6 +17,54 @@ class LinkConfig(Frozen):
     uplink_rate_bps: float = Field(2000.0, gt=0, description="uplink data rate, bit/s")
 
 
+class ReportConfig(Frozen):
+    """The flyby report: the paper's requirement thresholds (each with its source) and how much imagery it shows."""
+
+    in_view_required: float = Field(
+        0.98,
+        gt=0,
+        le=1,
+        description="fraction of camera frames with Dimorphos in the field of view required from the first "
+        "ACQUISITION to C/A + in_view_after_ca_s, fraction (paper: 98% nominal; worst-case scenarios set 0.90, "
+        "paper: more than 90%)",
+    )
+    in_view_after_ca_s: float = Field(
+        60.0, ge=0, description="the in-view and pointing windows end this long after the true C/A, s (issue 6)"
+    )
+    max_pointing_error_fov_fraction: float = Field(
+        0.5, gt=0, description="largest pointing error allowed, as a fraction of the field of view (paper: half the FOV)"
+    )
+    peak_rate_required_deg_s: float = Field(
+        7.0, gt=0, description="body rate the spacecraft must reach, deg/s (paper: a peak of 7 deg/s)"
+    )
+    centroid_tolerance_px: float = Field(
+        15.0,
+        gt=0,
+        description="largest distance of a Dimorphos centroid from the reference at the binned 512x512 scale, px "
+        "(paper: an image test passes when the centroids are less than 15 pixels apart)",
+    )
+    estimate_before_ca_s: float = Field(
+        30.0,
+        gt=0,
+        description="the C/A estimates are scored as they stood this long before the true C/A, s "
+        "(paper and DESIGN: autonomous tracking on the recognised trajectory starts at C/A-30 s)",
+    )
+    mosaic_frames: int = Field(
+        16, ge=1, le=64, description="camera frames shown in the mosaic, count (issue 6: 12-16 spread over the flyby)"
+    )
+    gif_max_frames: int = Field(
+        140, ge=1, description="frames at most in the animated GIF, count (a 512-px frame is ~40-70 kB as GIF: "
+        "140 keep a 420-frame flyby under ~10 MB)"
+    )
+    gif_max_bytes: int = Field(
+        10_000_000, gt=0, description="largest animated GIF, octets (issue 6: under ~10 MB); frames are thinned to fit"
+    )
+    gif_frame_ms: int = Field(
+        100, ge=20, description="display time of each GIF frame, ms (10 frames per second: ~14 s for 140 frames)"
+    )
+    plot_dpi: int = Field(100, ge=50, le=300, description="resolution of the PNG plots, dots per inch (screen class)")
+
+
 class GroundConfig(Frozen):
     """What the ground segment does during a run."""
 
@@ -46,3 +94,4 @@ class GroundConfig(Frozen):
     correlation_window: int = Field(
         200, ge=3, description="number of most recent time reports the OBT-UTC fit uses"
     )
+    report: ReportConfig = ReportConfig()
