@@ -45,6 +45,44 @@ def cmd_run(args: argparse.Namespace) -> int:
     return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level)
 
 
+def cmd_render(args: argparse.Namespace) -> int:
+    """Validate, then write the frames of perfect pointing as 8-bit PNGs and an animated GIF."""
+    import time
+
+    from PIL import Image
+
+    from universe.render import RenderRequestError, display_frame, perfect_pointing_frames, render_times_s
+
+    scenario = _load_or_report(args.scenario)
+    if scenario is None:
+        return EXIT_CONFIG
+    u = scenario.universe
+    every_s = u.camera.frame_period_s if args.every is None else args.every
+    from_s = u.start_s if args.from_s is None else args.from_s
+    to_s = u.end_s if args.to_s is None else args.to_s
+    try:
+        times = render_times_s(from_s, to_s, every_s)
+        if args.size < 1:
+            raise RenderRequestError(f"--size must be at least 1 px, got {args.size}")
+    except RenderRequestError as err:
+        print(f"flyby render: {err}", file=sys.stderr)
+        return EXIT_CONFIG
+    args.out.mkdir(parents=True, exist_ok=True)
+    wall0 = time.perf_counter()
+    images = []
+    for i, frame in enumerate(perfect_pointing_frames(scenario, times)):
+        img = display_frame(frame.pixels, u.camera.bit_depth, args.size)
+        Image.fromarray(img).save(args.out / f"frame_{i:05d}.png")
+        images.append(Image.fromarray(img))
+        print(f"\rframe {i + 1}/{len(times)}  t={frame.t_s:+.1f} s", end="", file=sys.stderr, flush=True)
+    print(file=sys.stderr)
+    gif = args.out / "render.gif"
+    images[0].save(gif, save_all=True, append_images=images[1:], duration=args.gif_frame_ms, loop=0)
+    print(f"{len(times)} frames of {scenario.name}, t={times[0]:+.1f}..{times[-1]:+.1f} s every {every_s:g} s, "
+          f"in {time.perf_counter() - wall0:.1f} s: {args.out}/frame_*.png and {gif}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every sub-command."""
     p = argparse.ArgumentParser(prog="flyby", description=__doc__)
@@ -58,6 +96,15 @@ def build_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("validate", help="check scenario files and print every error with its path")
     v.add_argument("files", type=Path, nargs="+")
     v.set_defaults(func=cmd_validate)
+    d = sub.add_parser("render", help="write the frames the camera would see with perfect pointing (PNGs and a GIF)")
+    d.add_argument("scenario", type=Path)
+    d.add_argument("--out", type=Path, required=True, help="folder for frame_NNNNN.png and render.gif")
+    d.add_argument("--every", type=float, default=None, help="s between frames (default: the camera frame period)")
+    d.add_argument("--from", dest="from_s", type=float, default=None, help="first true time, s (default: run start)")
+    d.add_argument("--to", dest="to_s", type=float, default=None, help="last true time, s (default: run end)")
+    d.add_argument("--size", type=int, default=512, help="side of the PNG and GIF images, px")
+    d.add_argument("--gif-frame-ms", type=int, default=100, help="display time of each GIF frame, ms")
+    d.set_defaults(func=cmd_render)
     return p
 
 
