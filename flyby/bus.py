@@ -49,6 +49,8 @@ def session_config(
     conf.insert_json5("scouting/multicast/enabled", "true" if multicast_scouting else "false")
     conf.insert_json5("listen/endpoints", json.dumps(list(listen)))
     conf.insert_json5("connect/endpoints", json.dumps(list(connect)))
+    # peers start in any order: retry a connection quickly rather than Zenoh's default of seconds
+    conf.insert_json5("connect/retry", '{"period_init_ms": 100, "period_max_ms": 500, "period_increase_factor": 1.5}')
     return conf
 
 

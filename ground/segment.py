@@ -149,8 +149,9 @@ class GroundSegment:
             log.append(f"undecodable telemetry packet ({len(raw)} octets): {exc}")
             return ReceivedPacket(raw, utc_s, None, None, str(exc))
         if isinstance(report, pus.TimeReport):
-            self.state.time_reports.append(TimeReport(obt_s=report.obt_s, received_utc_s=utc_s,
-                                                      light_time_s=self.cfg.link.one_way_light_time_s))
+            # generated one light time plus its own transmission time before its last bit arrived
+            delay = self.cfg.link.one_way_light_time_s + len(raw) * 8.0 / self.cfg.link.downlink_rate_bps
+            self.state.time_reports.append(TimeReport(obt_s=report.obt_s, received_utc_s=utc_s, light_time_s=delay))
             self._refit(log)
         elif isinstance(report, pus.Housekeeping):
             self.state.last_hk, self.state.last_hk_obt_s = report, header.obt_s

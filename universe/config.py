@@ -64,7 +64,11 @@ class BodiesConfig(Frozen):
     dimorphos_diameter_m: float = Field(164.0, gt=0, description="mean diameter of Dimorphos, m (paper)")
     orbit_radius_m: float = Field(1190.0, gt=0, description="Dimorphos orbit radius, m (Naidu et al. 2020)")
     orbit_period_h: float = Field(11.92, gt=0, description="Dimorphos orbital period, h (pre-impact)")
-    orbit_phase_deg: float = Field(0.0, description="Dimorphos orbital phase at the epoch, deg")
+    orbit_phase_deg: float = Field(
+        90.0,
+        description="Dimorphos orbital phase at the epoch, deg (90: Dimorphos beside Didymos as seen on the approach; "
+        "at 0 it hides in front of Didymos until C/A)",
+    )
     orbit_normal: Vec3 = Field(
         (0.0, 0.0, 1.0),
         description="normal of the Dimorphos orbit plane, inertial frame (normalised; the orbit is prograde about it); "
@@ -240,7 +244,7 @@ class PlumeConfig(Frozen):
         50.0, gt=0, description="speed of the ejecta front, m/s (order of the bulk DART ejecta speeds, tens of m/s)"
     )
     cross_section_m2: float = Field(
-        1.0e7,
+        1.0e6,
         ge=0,
         description="total geometric cross-section of the ejecta before fading, m^2 (the system brightened ~3.5 mag, "
         "~25x the ~0.5 km^2 of Didymos; Graykowski et al. 2023)",

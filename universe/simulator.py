@@ -101,7 +101,9 @@ class Universe:
         sc = self.cfg.spacecraft
         rng = self.rng["initial"]
         los = self.geometry.truth_sample(self.t_s, np.array([0, 0, 0, 1.0]), np.array([0, 0, 1.0]), 90.0)
-        att = pointing_attitude(los.los_dimorphos_inertial, self.geometry.e_v)
+        # body +X against the velocity puts body +Y on the flyby-plane normal e_ca x e_v, the attitude the on-board
+        # tracking loop holds, so a run starts without a 180 deg roll slew
+        att = pointing_attitude(los.los_dimorphos_inertial, -self.geometry.e_v)
         axis = rng.standard_normal(3)
         axis /= np.linalg.norm(axis)
         error = Rotation.from_rotvec(np.radians(sc.initial_attitude_error_deg) * axis)

@@ -1,0 +1,103 @@
+"""The OBSW node: the flight software core on the bus, answering each universe step with actuator commands.
+
+The node only moves messages: a ``StepRequest`` (with the camera frame in its blob) goes into
+``FlightSoftware.step`` and the ``StepReply`` comes back out. A repeated step (the universe resent it because
+our reply was lost) gets the same reply again, so the core never runs a period twice.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import zenoh
+
+from flyby.bus import Keys
+from flyby.clock import WallClock
+from flyby.errors import NodeFailure
+from flyby.messages import StepReply, StepRequest
+from flyby.runtime import Attachment, PeerStopped, RelayedFailure
+from flyby.scenario import Scenario
+from obsw.software import FlightSoftware
+
+log = logging.getLogger("obsw")
+
+EXIT_OK, EXIT_INTERNAL, EXIT_PEER = 0, 1, 3
+
+
+def frame_pixels(req: StepRequest, blob: bytes) -> np.ndarray | None:
+    """The camera frame carried in the blob of ``req``, as a uint16 array, or None."""
+    meta = req.frame
+    if meta is None:
+        return None
+    expected = meta.width * meta.height * 2
+    if len(blob) != expected:
+        raise ValueError(f"StepRequest {req.step}: frame {meta.frame_id} has {len(blob)} bytes, expected {expected}")
+    return np.frombuffer(blob, dtype="<u2").reshape(meta.height, meta.width)
+
+
+def run(bus: Attachment, fsw: FlightSoftware, scenario: Scenario) -> None:
+    """Answer steps until the universe ends the run."""
+    last: tuple[int, StepReply] | None = None
+    last_status = -1.0
+    clock = bus.clock
+    wait = scenario.bus.startup_timeout_s + scenario.bus.reply_timeout_s
+    while True:
+        got = bus.receive(wait)
+        if got is None:
+            raise NodeFailure("universe", bus.sim_time_s, f"stopped sending steps (nothing for {wait:g} s)")
+        wait = scenario.bus.reply_timeout_s
+        req = got.msg
+        if not isinstance(req, StepRequest):
+            continue
+        if last is not None and req.step == last[0]:
+            bus.publish(bus.keys.reply, last[1])
+            continue
+        if last is not None and req.step < last[0]:
+            continue  # a stale duplicate of an older step
+        try:
+            frame = frame_pixels(req, got.blob)
+        except ValueError as exc:
+            bus.decode_errors += 1
+            log.warning("%s; frame dropped", exc)
+            frame = None
+            req = req.model_copy(update={"frame": None})
+        reply = fsw.step(req, frame)
+        for line in fsw.take_log():
+            log.info("%s", line)
+        bus.sim_time_s = req.obt_s
+        bus.publish(bus.keys.reply, reply)
+        last = (req.step, reply)
+        now = clock.now()
+        if now - last_status >= 0.5:
+            bus.status(req.obt_s, None, fsw.mode_name, text=f"OBT {req.obt_s:.1f} s")
+            last_status = now
+
+
+def main(conf: zenoh.Config, scenario: Scenario, run_id: str) -> int:
+    """Run the OBSW node until the run ends or a peer fails; return the process exit code."""
+    keys = Keys(run_id)
+    with zenoh.open(conf) as session:
+        bus = Attachment(session, keys, "obsw", WallClock(), log)
+        bus.subscribe(keys.step, StepRequest)
+        bus.watch_peers()
+        bus.declare_alive()
+        fsw = FlightSoftware(scenario.obsw, scenario.universe.spacecraft, scenario.universe.camera)
+        try:
+            run(bus, fsw, scenario)
+        except NodeFailure as failure:
+            log.error("%s (last on-board time %s s)", failure, bus.sim_time_s)
+            if not isinstance(failure, RelayedFailure):
+                bus.shutdown(str(failure), failed=True)
+            return EXIT_PEER
+        except PeerStopped as stop:
+            log.info("stopped by %s: %s; %d undecodable messages", stop.shutdown.node, stop.shutdown.reason,
+                     bus.decode_errors)
+            return EXIT_OK
+        except Exception as exc:
+            log.exception("internal error")
+            bus.shutdown(f"obsw internal error: {exc!r}", failed=True)
+            return EXIT_INTERNAL
+        finally:
+            bus.close()
+    return EXIT_OK

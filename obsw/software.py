@@ -1,0 +1,391 @@
+"""The flight software core: one call per control period, on on-board time only.
+
+``FlightSoftware.step`` takes what the hardware read during the period (OBT, sensors, received telecommands,
+a camera frame) and returns what the software commands (wheel torques, a frame request, telemetry packets).
+Inside, in this order each period:
+
+1. telecommands received are decoded, verified (PUS service 1) and executed; a bad one is answered with a
+   failure report and nothing else is lost;
+2. scheduled commands whose tag has come (PUS service 11) are released and executed;
+3. the attitude estimate is taken from the star tracker (propagated with the gyro during an outage);
+4. a frame, if one arrived, goes through the imaging chain; Dimorphos's line of sight feeds the tracking loop
+   and the trajectory recognition;
+5. the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
+   on-board estimate, end of flyby);
+6. the tracking loop and the PD controller give the wheel torques;
+7. housekeeping, time reports and events go into the downlink.
+
+It never reads the clock, the bus or the disk: the node feeds it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from flyby import pus
+from flyby.messages import FrameRequest, StepReply, StepRequest
+from obsw.config import ObswConfig
+from obsw.control import pd_torque_nm, wheel_torques_nm
+from obsw.errors import CommandRejected, InternalFault, RejectReason
+from obsw.imaging import Detections, los_body, process_frame
+from obsw.modes import CaEstimate, Cause, Mode, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
+from obsw.modes import SetMode as SetModeTrigger
+from obsw.recognition import TrajectoryRecognizer
+from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
+from obsw.tracking import Reference, TrackingLoop
+from obsw.trajectory import NominalTrajectory
+from universe.config import CameraConfig, SpacecraftConfig
+
+TRACKING_MODES = (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING)
+POINTING_MODES = (Mode.ACQUISITION, *TRACKING_MODES)
+
+
+def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
+    """Wheel spin axes in body axes, 3 x N: identity, or four at ``pyramid_angle_deg`` elevation about +Z."""
+    if layout == "orthogonal":
+        return np.eye(3)
+    el = math.radians(pyramid_angle_deg)
+    az = np.radians([45.0, 135.0, 225.0, 315.0])
+    return np.vstack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.full(4, np.sin(el))])
+
+
+class FlightSoftware:
+    """The on-board software of the flyby, advanced one control period per ``step``."""
+
+    def __init__(self, cfg: ObswConfig, spacecraft: SpacecraftConfig, camera: CameraConfig) -> None:
+        self.cfg = cfg
+        self.camera = camera
+        w = spacecraft.wheels
+        self.axes = wheel_axes_body(w.layout, w.pyramid_angle_deg)
+        self.max_torque_nm = w.max_torque_nm
+        self.max_momentum_nms = w.max_momentum_nms
+        self.wheel_inertia_kgm2 = w.inertia_kgm2
+        self.inertia = np.asarray(cfg.inertia_kgm2, dtype=float)
+        self.modes = ModeManager(cfg.modes)
+        self.schedule = TimeBasedSchedule(cfg.schedule_capacity, cfg.schedule_margin_s, payload_check=self._check_tc)
+        self.tracking = TrackingLoop(cfg.tracking)
+        self.trajectory: NominalTrajectory | None = None
+        self.recognizer: TrajectoryRecognizer | None = None
+        self.detections: Detections | None = None
+        self.imaging = False
+        self.frame_period_s = camera.frame_period_s
+        self.exposure_s = camera.exposure_s
+        self._next_frame_obt: float | None = None
+        self._tm_seq = 0
+        self._msg_counter = 0
+        self._last_obt: float | None = None
+        self._q_est: np.ndarray | None = None
+        self._hk_next: float | None = None
+        self._estimate_next = float("-inf")
+        self._time_report_period: float | None = None
+        self._time_report_next: float | None = None
+        self._time_reports_left = 0
+        self._last_seen_obt: float | None = None
+        self._wheel_saturated = False
+        self._log: list[str] = []
+        self._tm: list[bytes] = []
+        self.last_reference: Reference | None = None
+        self.pointing_error_est_rad: float | None = None
+
+    # -- public ------------------------------------------------------------------------------------------
+    @property
+    def mode_name(self) -> str:
+        """Name of the current mode."""
+        return self.modes.mode.name
+
+    def take_log(self) -> list[str]:
+        """Log lines since the last call."""
+        out, self._log = self._log, []
+        return out
+
+    def step(self, req: StepRequest, frame: np.ndarray | None) -> StepReply:
+        """One control period: see the module docstring for the order of work."""
+        obt = req.obt_s
+        dt = self.cfg.control_period_s if self._last_obt is None else max(obt - self._last_obt, 0.0)
+        self._last_obt = obt
+        self._tm = []
+        self._time_report(obt)
+        for raw in req.uplink:
+            self._telecommand(raw, obt, scheduled=False)
+        for entry in self.schedule.release_due(obt):
+            self._telecommand(entry.payload, obt, scheduled=True)  # type: ignore[arg-type]
+        q, omega = self._attitude(req, dt)
+        wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
+        wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ omega + wheel_speed)
+        los_i = self._image(frame, req, q) if frame is not None else None
+        self._mode_by_events(obt, los_i is not None)
+        torque = self._control(obt, dt, q, omega, wheel_h, los_i)
+        frame_request = self._frame_request(obt)
+        self._periodic_tm(obt, q, omega, wheel_speed, wheel_h)
+        return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in torque),
+                         frame_request=frame_request, downlink=tuple(self._tm))
+
+    # -- telemetry -----------------------------------------------------------------------------------------
+    def _send(self, report: pus.TmReport, obt: float) -> None:
+        self._tm.append(pus.encode_tm(report, self.cfg.apid, self._tm_seq, obt, self._msg_counter))
+        self._tm_seq = (self._tm_seq + 1) % pus.SEQ_COUNT_MODULO
+        self._msg_counter = (self._msg_counter + 1) % 0x10000
+
+    def _event(self, event: pus.TmReport, obt: float, text: str) -> None:
+        self._send(event, obt)
+        self._log.append(f"OBT {obt:.2f} s: {text}")
+
+    # -- telecommands --------------------------------------------------------------------------------------
+    def _check_tc(self, payload: object) -> None:
+        """Schedule payload check: a complete TC packet of a known command with valid arguments."""
+        if not isinstance(payload, bytes):
+            raise CommandRejected(RejectReason.MALFORMED, f"scheduled payload is {type(payload).__name__}, not a TC")
+        try:
+            pus.decode_tc(payload, expected_apid=self.cfg.apid)
+        except pus.PacketError as exc:
+            raise CommandRejected(RejectReason.BAD_ARGUMENT, f"scheduled TC: {exc}") from None
+
+    def _verify(self, rid: pus.RequestId, stage: pus.Stage, obt: float, code: int | None = None,
+                reason: str = "") -> None:
+        self._send(pus.Verification(stage=stage, request_id=rid, failure_code=code, reason=reason[:255]), obt)
+
+    def _telecommand(self, raw: bytes, obt: float, scheduled: bool) -> None:
+        try:
+            header, cmd = pus.decode_tc(raw, expected_apid=self.cfg.apid)
+        except pus.PacketError as exc:
+            self._log.append(f"OBT {obt:.2f} s: rejected telecommand: {exc}")
+            failure = pus.Verification.failure_for(exc)
+            if failure is not None:
+                self._send(failure, obt)
+            return
+        rid = header.request_id
+        if not scheduled:
+            self._verify(rid, pus.Stage.ACCEPTANCE, obt)
+        try:
+            self._execute(cmd, obt)
+        except CommandRejected as rej:
+            self._log.append(f"OBT {obt:.2f} s: {type(cmd).__name__} refused: {rej.text}")
+            self._verify(rid, pus.Stage.COMPLETION, obt, 0x0100 + int(rej.reason), rej.text)
+            self._event(pus.CommandRejectedEvent(request_id=rid, failure_code=0x0100 + int(rej.reason),
+                                                 reason=rej.text[:255]), obt, f"command rejected: {rej.text}")
+            return
+        self._verify(rid, pus.Stage.COMPLETION, obt)
+
+    def _execute(self, cmd: pus.TcCommand, obt: float) -> None:
+        if isinstance(cmd, pus.Ping):
+            self._send(pus.PingReply(), obt)
+        elif isinstance(cmd, pus.UploadNominalTrajectory):
+            self._load_trajectory(cmd, obt)
+        elif isinstance(cmd, pus.SetMode):
+            self._mode_event(self.modes.handle(SetModeTrigger(Mode(cmd.mode.name)), obt), obt)
+        elif isinstance(cmd, pus.SetCameraCadence):
+            self.frame_period_s, self.exposure_s = cmd.period_s, cmd.exposure_s
+        elif isinstance(cmd, pus.StartImaging):
+            if cmd.period_s is not None:
+                self.frame_period_s = cmd.period_s
+            self.imaging = True
+            self._next_frame_obt = obt
+        elif isinstance(cmd, pus.StopImaging):
+            self.imaging = False
+        elif isinstance(cmd, pus.SetTimeReportRate):
+            self._time_report_period = float(2**cmd.rate_exponent)
+            self._time_report_next = obt
+            self._time_reports_left = -1
+        elif isinstance(cmd, pus.RequestTimeReports):
+            self._time_report_period = 1.0
+            self._time_report_next = obt
+            self._time_reports_left = cmd.count
+        elif isinstance(cmd, pus.InsertActivities):
+            reqs = [ScheduleRequest(request_id=pus.request_id_of(a.tc_packet).seq_count, tag_obt_s=a.release_obt_s,
+                                    payload=a.tc_packet, ca_offset_s=a.ca_offset_s) for a in cmd.activities]
+            if self.recognizer is not None and self.schedule.ca_anchor_obt_s is None:
+                self.schedule.reanchor_ca(self.trajectory.ca_time_obt_s)  # type: ignore[union-attr]
+            rejections = self.schedule.insert(obt, reqs)
+            if rejections:
+                raise CommandRejected(rejections[0].reason, "; ".join(
+                    f"activity {r.index}: {r.text}" for r in rejections))
+        elif isinstance(cmd, pus.DeleteActivities):
+            self.schedule.delete(Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids)))
+        elif isinstance(cmd, pus.TimeShiftActivities):
+            sel = None if not cmd.request_ids else Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids))
+            self.schedule.time_shift(obt, cmd.delta_s, sel)
+        elif isinstance(cmd, pus.SummaryReportRequest | pus.DetailReportRequest):
+            self._schedule_report(cmd, obt)
+        elif isinstance(cmd, pus.EnableSchedule | pus.DisableSchedule | pus.ResetSchedule):
+            raise CommandRejected(RejectReason.UNKNOWN_COMMAND, f"{type(cmd).__name__} is not supported on board")
+        else:
+            raise CommandRejected(RejectReason.UNKNOWN_COMMAND, f"{type(cmd).__name__} has no on-board handler")
+
+    def _schedule_report(self, cmd: pus.TcCommand, obt: float) -> None:
+        entries = self.schedule.listing()
+        if isinstance(cmd, pus.SummaryReportRequest):
+            self._send(pus.ScheduleSummaryReport(entries=tuple(
+                pus.ScheduleSummaryEntry(release_obt_s=e.tag_obt_s, request_id=pus.request_id_of(e.payload))  # type: ignore[arg-type]
+                for e in entries)), obt)
+        else:
+            self._send(pus.ScheduleDetailReport(activities=tuple(
+                pus.ScheduledActivity(release_obt_s=e.tag_obt_s, tc_packet=e.payload, ca_offset_s=e.ca_offset_s)  # type: ignore[arg-type]
+                for e in entries)), obt)
+
+    def _load_trajectory(self, cmd: pus.UploadNominalTrajectory, obt: float) -> None:
+        traj = NominalTrajectory(
+            ca_time_obt_s=cmd.ca_obt_s, ca_distance_km=cmd.ca_distance_km, speed_km_s=cmd.speed_km_s,
+            approach_direction=cmd.approach_direction, ca_direction=cmd.ca_direction,
+            ca_time_sigma_s=cmd.sigma_ca_time_s, ca_distance_sigma_km=cmd.sigma_ca_distance_km,
+        )
+        if self.modes.mode in TRACKING_MODES:
+            raise CommandRejected(RejectReason.BAD_ARGUMENT,
+                                  f"nominal trajectory cannot be replaced in {self.modes.mode.name}")
+        self.trajectory = traj
+        self.recognizer = TrajectoryRecognizer(traj, self.cfg.recognition)
+        self.schedule.reanchor_ca(traj.ca_time_obt_s)
+        self.modes.handle(CaEstimate(traj.ca_time_obt_s), obt)
+        self._log.append(f"OBT {obt:.2f} s: nominal trajectory loaded: C/A at OBT {traj.ca_time_obt_s:.2f} s, "
+                         f"{traj.ca_distance_km:.2f} km")
+
+    # -- attitude estimate ---------------------------------------------------------------------------------
+    def _attitude(self, req: StepRequest, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        omega = np.asarray(req.sensors.gyro_rad_s, dtype=float)
+        if req.sensors.star_tracker_q is not None:
+            q = np.asarray(req.sensors.star_tracker_q, dtype=float)
+        elif self._q_est is not None:  # outage: propagate the last estimate with the gyro
+            q = (Rotation.from_quat(self._q_est) * Rotation.from_rotvec(omega * dt)).as_quat()
+        else:
+            q = np.array([0.0, 0.0, 0.0, 1.0])
+        self._q_est = q / np.linalg.norm(q)
+        return self._q_est, omega
+
+    # -- imaging -------------------------------------------------------------------------------------------
+    def _image(self, frame: np.ndarray, req: StepRequest, q: np.ndarray) -> np.ndarray | None:
+        det = process_frame(frame, self.cfg.imaging, self.detections)
+        self.detections = det
+        meta = req.frame
+        assert meta is not None
+        obt = meta.obt_s
+        if det.dimorphos is None or det.dimorphos_offset_px is None:
+            self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=None, didymos_col_row=_col_row(det.didymos),
+                                            dimorphos_area_px=0, los_inertial=None), obt)
+            return None
+        d_col, d_row = det.dimorphos_offset_px
+        los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
+        los_i = Rotation.from_quat(q).apply(los_b)
+        self._last_seen_obt = obt
+        if self.recognizer is not None:
+            self.recognizer.add_measurement(obt, los_i)
+        self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=det.dimorphos.centroid_col_row,
+                                        didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
+                                        los_inertial=tuple(float(c) for c in los_i)), obt)
+        return los_i
+
+    def _frame_request(self, obt: float) -> FrameRequest | None:
+        if not self.imaging or self._next_frame_obt is None or obt < self._next_frame_obt:
+            return None
+        self._next_frame_obt = max(self._next_frame_obt + self.frame_period_s, obt)
+        return FrameRequest(exposure_s=self.exposure_s)
+
+    # -- modes ---------------------------------------------------------------------------------------------
+    def _mode_event(self, ev: ModeEvent | None, obt: float) -> None:
+        if ev is None:
+            return
+        cause = ev.cause.value + (f": {ev.detail}" if ev.detail else "")
+        self._event(pus.ModeChangedEvent(from_mode=pus.Mode[ev.from_mode.name], to_mode=pus.Mode[ev.to_mode.name],
+                                         cause=cause[:255]), obt, f"mode {ev.from_mode.name} -> {ev.to_mode.name} ({cause})")
+        if ev.cause == Cause.TARGET_ACQUIRED and self.detections is not None and self.detections.dimorphos is not None:
+            b = self.detections.dimorphos
+            self._event(pus.TargetAcquiredEvent(centroid_x_px=b.centroid_col_row[0], centroid_y_px=b.centroid_col_row[1],
+                                                area_px=b.area_px), obt, "target acquired")
+        if ev.cause == Cause.TARGET_LOST and self._last_seen_obt is not None:
+            self._event(pus.TargetLostEvent(unseen_s=obt - self._last_seen_obt), obt, "target lost")
+        if ev.to_mode in POINTING_MODES and not self.imaging:
+            self.imaging, self._next_frame_obt = True, obt
+        if ev.to_mode == Mode.AUTONOMOUS_TRACKING and self.recognizer is not None and self.trajectory is not None:
+            t_ca, d_ca = self.best_estimate()
+            self.trajectory = self.trajectory.with_ca(t_ca, d_ca)
+            moved = self.schedule.reanchor_ca(t_ca)
+            self._log.append(f"OBT {obt:.2f} s: autonomous trajectory C/A at OBT {t_ca:.2f} s, {d_ca:.2f} km; "
+                             f"{len(moved)} C/A-relative command(s) re-anchored")
+        if ev.to_mode in (Mode.STANDBY, Mode.SAFE):
+            self.imaging = False
+
+    def best_estimate(self) -> tuple[float, float]:
+        """(C/A time OBT s, C/A distance km) of the best trajectory recognised on board."""
+        assert self.recognizer is not None
+        if self.cfg.autonomy_estimate == "continuous":
+            t, d, _ = self.recognizer.continuous()
+            return t, d
+        t, d, _ = self.recognizer.best_grid()
+        return t, d
+
+    def _mode_by_events(self, obt: float, detected: bool) -> None:
+        m = self.modes
+        if self.trajectory is not None and m.mode == Mode.NOMINAL_TRACKING and self.recognizer is not None \
+                and self.recognizer.measurement_count >= self.cfg.min_recognition_measurements:
+            # C/A-30 s is judged on the on-board estimate, which absorbs both ephemeris and clock errors
+            self._mode_event(m.handle(CaEstimate(self.best_estimate()[0]), obt), obt)
+        if detected:
+            self._mode_event(m.handle(TargetDetected(), obt), obt)
+        self._mode_event(m.handle(Tick(), obt), obt)
+
+    # -- control -------------------------------------------------------------------------------------------
+    def _control(self, obt: float, dt: float, q: np.ndarray, omega: np.ndarray, wheel_h: np.ndarray,
+                 los_i: np.ndarray | None) -> np.ndarray:
+        if self.modes.mode in POINTING_MODES and self.trajectory is not None:
+            meas = los_i if self.modes.mode in TRACKING_MODES else None
+            ref = self.tracking.update(obt, dt, self.trajectory, meas)
+        else:  # hold the current attitude, rate to zero
+            if self.last_reference is None or self.modes.mode not in (Mode.STANDBY, Mode.SAFE):
+                self.tracking.reset()
+            ref = Reference(q_des=q if self.last_reference is None else self.last_reference.q_des,
+                            omega_des_body=np.zeros(3), alpha_des_body=np.zeros(3))
+        self.last_reference = ref
+        b = Rotation.from_quat(ref.q_des).apply(np.asarray(self.cfg.tracking.boresight_body, dtype=float))
+        boresight_now = Rotation.from_quat(q).apply(np.asarray(self.cfg.tracking.boresight_body, dtype=float))
+        if los_i is not None:
+            self.pointing_error_est_rad = float(np.arccos(np.clip(boresight_now @ los_i, -1, 1)))
+        del b
+        body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)
+        tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms)
+        saturated = bool(np.any(np.abs(wheel_h) >= self.max_momentum_nms))
+        if saturated and not self._wheel_saturated:
+            worst = int(np.argmax(np.abs(wheel_h)))
+            self._event(pus.WheelSaturationEvent(wheel=worst, momentum_nms=float(wheel_h[worst])), obt,
+                        f"wheel {worst} saturated at {wheel_h[worst]:+.4f} N m s")
+            self._mode_event(self.modes.handle(WheelSaturation(worst), obt), obt)
+        self._wheel_saturated = saturated
+        if not np.all(np.isfinite(tau)):
+            raise InternalFault(f"non-finite wheel torque {tau.tolist()} at OBT {obt}")
+        return tau
+
+    def _time_report(self, obt: float) -> None:
+        """A service 9 time report when due, first in the period's downlink so its delay on the link is known."""
+        if self._time_report_period is not None and self._time_report_next is not None and \
+                obt >= self._time_report_next and self._time_reports_left != 0:
+            self._send(pus.TimeReport(obt_s=obt), obt)
+            self._time_report_next += self._time_report_period
+            if self._time_reports_left > 0:
+                self._time_reports_left -= 1
+
+    # -- periodic telemetry ----------------------------------------------------------------------------------
+    def _periodic_tm(self, obt: float, q: np.ndarray, omega: np.ndarray, wheel_speed: np.ndarray,
+                     wheel_h: np.ndarray) -> None:
+        if self._hk_next is None or obt >= self._hk_next:
+            self._hk_next = (obt if self._hk_next is None else self._hk_next) + self.cfg.housekeeping_period_s
+            best_t = best_d = mse = None
+            if self.recognizer is not None:
+                best_t, best_d, mse = self.recognizer.best_grid()
+            self._send(pus.Housekeeping(
+                mode=pus.Mode[self.modes.mode.name], q=tuple(float(c) for c in q),
+                rate_rad_s=tuple(float(c) for c in omega), wheel_speed_rad_s=tuple(float(c) for c in wheel_speed),
+                wheel_momentum_nms=tuple(float(c) for c in wheel_h), pointing_error_rad=self.pointing_error_est_rad,
+                best_ca_obt_s=best_t, best_ca_distance_km=best_d, best_mse_rad2=mse), obt)
+        if self.recognizer is not None and self.recognizer.measurement_count > 0 and obt >= self._estimate_next:
+            self._estimate_next = obt + self.cfg.housekeeping_period_s
+            gt, gd, mse = self.recognizer.best_grid()
+            ct, cd, cov = self.recognizer.continuous()
+            self._send(pus.EstimateReport(
+                n_measurements=self.recognizer.measurement_count, grid_ca_obt_s=gt, grid_ca_distance_km=gd,
+                grid_mse_rad2=mse, continuous_ca_obt_s=ct, continuous_ca_distance_km=cd,
+                continuous_sigma_time_s=float(np.sqrt(cov[0, 0])), continuous_sigma_distance_km=float(np.sqrt(cov[1, 1]))),
+                obt)
+
+
+def _col_row(blob: object) -> tuple[float, float] | None:
+    return None if blob is None else blob.centroid_col_row  # type: ignore[attr-defined]
