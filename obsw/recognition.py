@@ -152,14 +152,17 @@ class TrajectoryRecognizer:
         x = (np.array([t0, d0_km * 1e3]) - origin) / scale
         x[~free] = 0.0
         # first with the grid's wide cap (robust start), then with the tight noise gate around that solution
-        for gate in (self.cfg.residual_cap_rad, self.cfg.outlier_gate_sigma * self.cfg.angle_noise_rad):
-            inliers = np.ones(times.size, dtype=bool)
-            for _ in range(5):
-                x = self._gauss_newton(x, origin, scale, free, times[inliers], theta[inliers])
+        tight = self.cfg.outlier_gate_sigma * self.cfg.angle_noise_rad
+        for gate in (self.cfg.residual_cap_rad, tight):
+            inliers = np.zeros(times.size, dtype=bool)
+            for _round in range(5):
                 new = np.abs(theta - self._predict(x, origin, scale, times)) <= gate
-                if np.array_equal(new, inliers) or not new.any():
+                if not new.any() or np.array_equal(new, inliers):
                     break
                 inliers = new
+                x = self._gauss_newton(x, origin, scale, free, times[inliers], theta[inliers])
+        # the information is that of the measurements the final estimate explains (none: the prior alone)
+        inliers = np.abs(theta - self._predict(x, origin, scale, times)) <= tight
         jac = self._jacobian(x, origin, scale, times[inliers]) / self.cfg.angle_noise_rad
         info = jac[:, free].T @ jac[:, free] + np.eye(int(free.sum()))
         cov_scaled = np.zeros((2, 2))

@@ -130,6 +130,10 @@ class TrackingLoop:
         self._kp = 2.0 * cfg.damping * cfg.natural_frequency_rad_s
         self._ki = cfg.natural_frequency_rad_s**2
         self._triad = _body_triad(cfg)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the correction, the measurements and the trajectory (e.g. on leaving the pointing modes)."""
         self._c = np.zeros(3)  # correction rotation vector, inertial, rad
         self._i = np.zeros(3)  # integral state: the loop's estimate of the offset rate, rad/s
         self._t: float | None = None  # loop time (advanced by dt_s), s
@@ -143,10 +147,6 @@ class TrackingLoop:
     def correction_rotvec(self) -> NDArray[np.float64]:
         """Current correction applied to the predicted LOS, inertial rotation vector, rad."""
         return self._c.copy()
-
-    def reset(self) -> None:
-        """Forget the correction and the measurements (e.g. on entering a new mode)."""
-        self.__init__(self.cfg)  # type: ignore[misc]
 
     # --- input model ---------------------------------------------------------------------------------------------
 

@@ -178,6 +178,18 @@ def test_outliers_do_not_flip_the_choice() -> None:
     assert abs(t - 1007.0) > 10 * np.sqrt(cov[0, 0])
 
 
+def test_measurements_nothing_explains_leave_the_nominal_and_its_prior() -> None:
+    """LOS far from every candidate (all residuals capped) carry no information: nominal and prior covariance."""
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    for t in TIMES[::10]:
+        rec.add_measurement(float(t), NOMINAL.e_ca)  # looking back at where the asteroid is not
+    t, d, mse = rec.best_grid()
+    assert (t, d) == (1000.0, 55.0) and mse == pytest.approx(CFG.residual_cap_rad**2)
+    t, d, cov = rec.continuous()
+    assert (t, d) == (1000.0, 55.0)
+    assert np.allclose(cov, np.diag([100.0, 25.0]))
+
+
 def test_clock_offset_is_absorbed_in_the_ca_time() -> None:
     """Measurements stamped by a clock running 25 s ahead give a C/A time 25 s later in OBT, the same distance."""
     truth = NOMINAL.with_ca(1004.0, 53.0)

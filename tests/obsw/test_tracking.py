@@ -204,6 +204,18 @@ def test_frame_time_stamp_removes_the_latency_offset_near_ca() -> None:
     assert np.linalg.norm(late.correction_rotvec) > 0.5 * TRAJ.los_rate_rad_s(0.0) * dt
 
 
+def test_reset_forgets_the_correction() -> None:
+    """After reset the loop restarts on the bare trajectory, as a new loop does."""
+    loop = TrackingLoop(CFG)
+    loop.update(-100.0, 0.1, TRAJ, Rotation.from_rotvec([0.0, 0.0, 0.01]).apply(TRAJ.los_inertial(-100.0)))
+    loop.update(-90.0, 10.0, TRAJ, None)
+    assert np.linalg.norm(loop.correction_rotvec) > 1e-3
+    loop.reset()
+    ref = loop.update(-80.0, 10.0, TRAJ, None)
+    assert np.allclose(ref.q_des, TrackingLoop(CFG).update(-80.0, 0.1, TRAJ, None).q_des, atol=1e-15)
+    assert np.linalg.norm(loop.correction_rotvec) == 0.0
+
+
 def test_predicted_attitude_honours_other_boresights() -> None:
     """With a boresight along body -X and the normal axis along body +Z the triad still maps them exactly."""
     cfg = TrackingConfig(boresight_body=(-2.0, 0.0, 0.0), plane_normal_axis_body=(0.0, 0.0, 3.0))
