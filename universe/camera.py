@@ -249,8 +249,8 @@ def smeared_psf(dx: np.ndarray, dy: np.ndarray, sigma_px: float, lx: np.ndarray,
 
 
 def psf_half_size_px(sigma_px: float, smear_px: float) -> int:
-    """Half-size of a kernel holding the PSF and its smear: 4 sigma beyond half the smear length."""
-    return int(math.ceil(4.0 * sigma_px + 0.5 * smear_px)) + 1
+    """Half-size of a kernel holding the PSF and its smear: 3.5 sigma (99.8 % of the light) beyond half the smear."""
+    return int(math.ceil(3.5 * sigma_px + 0.5 * smear_px))
 
 
 def psf_kernel(sigma_px: float, smear_px: tuple[float, float]) -> np.ndarray:
@@ -265,9 +265,11 @@ def psf_kernel(sigma_px: float, smear_px: tuple[float, float]) -> np.ndarray:
 # Bodies
 
 
-_TABLE_N = 128  # radius/normal table side; 1.4 deg per cell at the limb, finer than the smallest 12 deg bump
+_TABLE_MAX = 96  # radius/normal table side at most: 1.9 deg per cell at the limb, finer than any bump
+_TABLE_MIN = 24  # ... and at least (bodies a few pixels across)
 _TABLE_S = 1.5  # stereographic half-extent: directions up to 112 deg from the camera direction
-_RAY_ITERATIONS = 3  # safeguarded Newton steps of the ray/surface intersection (quadratic convergence)
+_RAY_ITERATIONS = 4  # safeguarded Newton steps of the ray/surface intersection, from the bounding sphere inward
+_LIMB_ANGLES = np.deg2rad(np.linspace(50.0, 130.0, 25))  # polar angles from the camera direction searched for the limb
 _REMAP_COLS = 1024  # cv2.remap maps must stay below 32767 per side: 1-D data is folded into rows of this length
 
 
@@ -278,8 +280,8 @@ def _remap_points(table: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarr
         return np.empty((0, table.shape[2]), dtype=table.dtype)
     rows = -(-n // _REMAP_COLS)
     pad = rows * _REMAP_COLS - n
-    mxp = np.pad(mx, (0, pad)).reshape(rows, _REMAP_COLS)
-    myp = np.pad(my, (0, pad)).reshape(rows, _REMAP_COLS)
+    mxp = np.concatenate([mx, np.zeros(pad, np.float32)]).reshape(rows, _REMAP_COLS)
+    myp = np.concatenate([my, np.zeros(pad, np.float32)]).reshape(rows, _REMAP_COLS)
     out = cv2.remap(table, mxp, myp, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return out.reshape(rows * _REMAP_COLS, table.shape[2])[:n]
 
@@ -291,10 +293,10 @@ def _view_basis(e3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, np.cross(e3, e1)
 
 
-@lru_cache(maxsize=4)
-def _stereo_directions() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """View-frame unit directions (N, N) of the stereographic table nodes (columns: s1, rows: s2)."""
-    g = np.linspace(-_TABLE_S, _TABLE_S, _TABLE_N)
+@lru_cache(maxsize=16)
+def _stereo_directions(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """View-frame unit directions (n, n) of the stereographic table nodes (columns: s1, rows: s2)."""
+    g = np.linspace(-_TABLE_S, _TABLE_S, n)
     s1, s2 = np.meshgrid(g, g)
     rho2 = s1 * s1 + s2 * s2
     out = (2.0 * s1 / (1.0 + rho2), 2.0 * s2 / (1.0 + rho2), (1.0 - rho2) / (1.0 + rho2))
@@ -303,9 +305,52 @@ def _stereo_directions() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return out
 
 
-def _shape_table(body: Body, view_to_ast: np.ndarray) -> np.ndarray:
-    """(N, N, 4) float32 table of radius (m) and view-frame normal over stereographic view coordinates."""
-    v1, v2, v3 = _stereo_directions()
+def _table_side(diameter_px: float) -> int:
+    """Table side giving about one node per pixel across the visible hemisphere (which spans 2/3 of it)."""
+    return int(min(_TABLE_MAX, max(_TABLE_MIN, 16 * math.ceil(1.5 * diameter_px / 16))))
+
+
+def pseudo_angle(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A cheap increasing function of atan2(y, x) in [0, 4): 0 along +x, 1 along +y, 2 along -x, 3 along -y."""
+    t = x / (np.abs(x) + np.abs(y) + np.float32(1e-30))
+    return 1 - t + (y < 0) * (2 + 2 * t)
+
+
+def _limb_radius(table: np.ndarray, dist: float, perimeter_px: float) -> np.ndarray:
+    """Projected limb radius (m, in the plane through the centre normal to the view) per pseudo-angle bin.
+
+    Points seen at image polar angle psi lie in the half-plane through the camera-centre line at psi, so the limb
+    there is the largest perspective-projected radius over that half-plane's slice of the surface: a sampled
+    maximum over the angle from the camera direction, refined by a parabola through the best three samples.
+    Bin j is at ``pseudo_angle = 4 j / M``; M gives about one bin per pixel of perimeter.
+    """
+    m = int(min(4096, max(64, 2 ** math.ceil(math.log2(max(perimeter_px, 1.0))))))
+    t = 4.0 * np.arange(m) / m
+    tx = np.where(t < 2.0, 1.0 - t, t - 3.0)
+    ty = np.where(t < 2.0, 1.0 - np.abs(tx), np.abs(tx) - 1.0)
+    norm = np.hypot(tx, ty)
+    cos_psi, sin_psi = tx / norm, ty / norm
+    th = _LIMB_ANGLES
+    st, ct = np.sin(th), np.cos(th)
+    s_len = st / (1.0 + ct)  # stereographic radius of each polar angle
+    n = table.shape[0]
+    scale = (n - 1) / (2.0 * _TABLE_S)
+    mx = ((cos_psi[:, None] * s_len[None, :] + _TABLE_S) * scale).astype(np.float32)
+    my = ((sin_psi[:, None] * s_len[None, :] + _TABLE_S) * scale).astype(np.float32)
+    r = cv2.remap(np.ascontiguousarray(table[..., 0]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    proj = dist * r * st / (dist - r * ct)  # (m, samples)
+    k = np.clip(np.argmax(proj, axis=1), 1, len(th) - 2)
+    rows = np.arange(m)
+    y0, y1, y2 = proj[rows, k - 1], proj[rows, k], proj[rows, k + 1]
+    den = y0 - 2.0 * y1 + y2
+    u = np.where(den < 0, 0.5 * (y0 - y2) / np.where(den < 0, den, -1.0), 0.0)
+    limb = (y1 - 0.25 * (y0 - y2) * u).astype(np.float32)
+    return np.append(limb, limb[0])  # closed: bin M is bin 0
+
+
+def _shape_table(body: Body, view_to_ast: np.ndarray, n: int) -> np.ndarray:
+    """(n, n, 4) float32 table of radius (m) and view-frame normal over stereographic view coordinates."""
+    v1, v2, v3 = _stereo_directions(n)
     m = view_to_ast
     ast = body.shape.lookup(
         m[0, 0] * v1 + m[0, 1] * v2 + m[0, 2] * v3,
@@ -313,7 +358,7 @@ def _shape_table(body: Body, view_to_ast: np.ndarray) -> np.ndarray:
         m[2, 0] * v1 + m[2, 1] * v2 + m[2, 2] * v3,
     )
     a2v = view_to_ast.T  # body frame -> view frame
-    table = np.empty((_TABLE_N, _TABLE_N, 4), dtype=np.float32)
+    table = np.empty((n, n, 4), dtype=np.float32)
     table[..., 0] = ast[..., 0] * np.float32(body.radius_m)
     n1, n2, n3 = ast[..., 1], ast[..., 2], ast[..., 3]
     for k in range(3):
@@ -369,106 +414,195 @@ def _body_box(
     return box
 
 
+class _BodyCaster:
+    """Ray caster of one body in one frame, in the view frame (e3 from the body centre to the camera).
+
+    A unit ray with view components (d1, d2, d3) passes the centre at b = dist * sqrt(d1^2 + d2^2), at the point
+    (-dist d3 d1, -dist d3 d2, dist (d1^2 + d2^2)); ``h`` counts the distance from there towards the camera.
+    """
+
+    def __init__(
+        self, view: _BodyView, c2i: np.ndarray, sun_c: np.ndarray, cfg: CameraConfig, f: float, cx: float, cy: float
+    ) -> None:
+        body = view.body
+        p = -view.centre_c  # camera relative to the body centre, camera frame
+        self.dist = dist = float(np.linalg.norm(p))
+        e3 = p / dist
+        e1, e2 = _view_basis(e3)
+        self.basis = np.stack([e1, e2, e3]).astype(np.float32)
+        self.f, self.cx, self.cy = f, cx, cy
+        self.r_max = np.float32(view.r_max_m)
+        self.r_min = np.float32(body.radius_m * body.shape.min_radius())
+        self.radius = np.float32(body.radius_m)
+        self.diameter_px = 2.0 * f * view.r_max_m / dist
+        n_side = _table_side(self.diameter_px)
+        view_to_cam = np.stack([e1, e2, e3], axis=1)
+        view_to_ast = Rotation.from_quat(body.q_body_to_inertial).as_matrix().T @ c2i @ view_to_cam
+        self.table = _shape_table(body, view_to_ast, n_side)
+        self.limb = _limb_radius(self.table, dist, math.pi * self.diameter_px)
+        self.sun_v = (view_to_cam.T @ sun_c).astype(np.float32)
+        self.signal_scale = np.float32(
+            cfg.body_signal_e_s * body.reflectance_factor * _phase_factor(cfg, float(sun_c @ e3))
+        )
+        self.wls = np.float32(cfg.lommel_seeliger_weight)
+
+    def cast(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rays through pixel centres (1-D arrays): indices of those hitting the body, their depth (m), signal (e-/s)."""
+        distf = np.float32(self.dist)
+        dx = (cols.astype(np.float32) - np.float32(self.cx)) * np.float32(1.0 / self.f)
+        dy = (rows.astype(np.float32) - np.float32(self.cy)) * np.float32(1.0 / self.f)
+        inv = np.float32(1.0) / np.sqrt(dx * dx + dy * dy + np.float32(1.0))
+        (a, b, c), (d, e, g) = self.basis[0], self.basis[1]
+        de1 = (a * dx + b * dy + c) * inv
+        de2 = (d * dx + e * dy + g) * inv
+        sin2 = de1 * de1 + de2 * de2
+        cand = np.flatnonzero(sin2 < (self.r_max / distf) ** 2)
+        if cand.size == 0:
+            return cand, np.empty(0, np.float32), np.empty(0, np.float32)
+        de1, de2, sin2 = de1[cand], de2[cand], sin2[cand]
+        de3 = -np.sqrt(np.float32(1.0) - sin2)
+        # silhouette: inside the body's projected limb radius at the ray's polar angle in the view plane
+        limb = self.limb
+        bins = len(limb) - 1
+        rho = distf * np.sqrt(sin2) / -de3  # where the ray crosses the plane through the centre normal to e3
+        pos = pseudo_angle(de1, de2) * np.float32(bins / 4.0)
+        j = np.minimum(pos.astype(np.int32), bins - 1)
+        rho_limb = limb[j] + (limb[j + 1] - limb[j]) * (pos - j.astype(np.float32))
+        sel = np.flatnonzero(rho <= rho_limb)
+        de1, de2, de3, sin2, rho_limb = de1[sel], de2[sel], de3[sel], sin2[sel], rho_limb[sel]
+        b2 = distf * distf * sin2
+        rays = (-distf * de3 * de1, -distf * de3 * de2, distf * sin2, de1, de2, de3, b2)
+        # first guess: a sphere as wide as the limb in this direction
+        h, normal = self._intersect(rays, np.sqrt(np.maximum(rho_limb * rho_limb - b2, np.float32(0.0))))
+        n1, n2, n3 = normal
+        depth = -distf * de3 - h
+        sv = self.sun_v
+        mu0 = np.maximum(n1 * sv[0] + n2 * sv[1] + n3 * sv[2], np.float32(0.0))
+        mu = np.maximum(-(n1 * de1 + n2 * de2 + n3 * de3), np.float32(0.0))
+        w = self.wls
+        law = w * 2 * mu0 / np.maximum(mu0 + mu, np.float32(1e-12)) + (1 - w) * mu0
+        return cand[sel], depth, self.signal_scale * law
+
+    def _intersect(self, rays: tuple[np.ndarray, ...], h0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Front intersection h (m before the closest point) and the unit normal (3, n) there, by safeguarded Newton.
+
+        ``h0`` is the first guess inside the smallest radius; the bracket starts as [h(r_min), h(r_max)] inside the smallest radius and as the
+        whole chord [-h(r_max), h(r_max)] elsewhere, and shrinks from the side of each Newton iterate's sign.
+        """
+        table = self.table
+        n_side = table.shape[0]
+        scale = np.float32((n_side - 1) / (2.0 * _TABLE_S))
+        off = np.float32(_TABLE_S)
+        tiny = np.float32(1e-9 * self.dist)
+
+        def surface(rays: tuple[np.ndarray, ...], h: np.ndarray) -> tuple[np.ndarray, ...]:
+            """g = |x| - r(u), dg/dh and the unit normal at the points h before the rays' closest points."""
+            q1, q2, q3, a1, a2, a3, bb = rays
+            x1, x2, x3 = q1 - h * a1, q2 - h * a2, q3 - h * a3
+            qn = np.sqrt(bb + h * h) + tiny
+            den = np.maximum(qn + x3, np.float32(1e-3) * qn)
+            look = _remap_points(table, (x1 / den + off) * scale, (x2 / den + off) * scale)
+            r, n1, n2, n3 = look[:, 0], look[:, 1], look[:, 2], look[:, 3]
+            inv_n = np.float32(1.0) / np.sqrt(n1 * n1 + n2 * n2 + n3 * n3)
+            n1, n2, n3 = n1 * inv_n, n2 * inv_n, n3 * inv_n
+            inv_q = np.float32(1.0) / qn
+            nu = np.maximum((n1 * x1 + n2 * x2 + n3 * x3) * inv_q, np.float32(1e-3))
+            ud = (x1 * a1 + x2 * a2 + x3 * a3) * inv_q
+            nd = n1 * a1 + n2 * a2 + n3 * a3
+            # r(u) along the ray: its tangential gradient is r (u - n / (n.u)), and du/dh = -(d - (u.d) u) / |x|
+            slope = (h + r * (ud - nd / nu)) * inv_q
+            return qn - r, slope, n1, n2, n3
+
+        b2 = rays[6]
+        r_min, r_max, radius = self.r_min, self.r_max, self.radius
+        hi = np.sqrt(np.maximum(r_max * r_max - b2, np.float32(0.0)))
+        inner = (b2 < r_min * r_min).astype(np.float32)
+        lo = -hi + (np.sqrt(np.maximum(r_min * r_min - b2, np.float32(0.0))) + hi) * inner
+        # off the inner sphere the front root is reached monotonically from the camera side: start there
+        h = hi + (np.clip(h0, lo, hi) - hi) * inner
+        normal = np.zeros((3, b2.size), dtype=np.float32)
+        active = np.arange(b2.size)
+        act_rays, h_a, lo_a, hi_a = rays, h, lo, hi
+        tol = np.float32(1e-4) * radius
+        for it in range(_RAY_ITERATIONS):
+            g, slope, n1, n2, n3 = surface(act_rays, h_a)
+            normal[0, active], normal[1, active], normal[2, active] = n1, n2, n3
+            outside = (g > 0).astype(np.float32)
+            hi_a = hi_a + (h_a - hi_a) * outside
+            lo_a = h_a + (lo_a - h_a) * outside
+            step = h_a - g / np.maximum(slope, np.float32(1e-6))
+            mid = np.float32(0.5) * (lo_a + hi_a)
+            h_a = mid + (step - mid) * ((step > lo_a) & (step < hi_a))
+            h[active] = h_a
+            if it + 1 < _RAY_ITERATIONS:
+                # rays already on the surface (|g| below 0.1 mm per metre of radius) are done
+                keep = np.flatnonzero(np.abs(g) > tol)
+                if keep.size == 0:
+                    break
+                active = active[keep]
+                act_rays = tuple(a[keep] for a in act_rays)
+                h_a, lo_a, hi_a = h_a[keep], lo_a[keep], hi_a[keep]
+        return h, normal
+
+
+_SUBSAMPLE_MIN_PX = 48.0  # bodies at least this wide are cast on a 2 px grid inside, per pixel along edges
+
+
+def _upsample2(a: np.ndarray) -> np.ndarray:
+    """Bilinear 2x upsampling of node values (n, m) onto (2n - 2, 2m - 2) pixels, nodes at the even pixels."""
+    out = np.empty((2 * a.shape[0] - 2, 2 * a.shape[1] - 2), dtype=a.dtype)
+    a00, a10, a01, a11 = a[:-1, :-1], a[1:, :-1], a[:-1, 1:], a[1:, 1:]
+    out[0::2, 0::2] = a00
+    out[1::2, 0::2] = (a00 + a10) * 0.5
+    out[0::2, 1::2] = (a00 + a01) * 0.5
+    out[1::2, 1::2] = (a00 + a10 + a01 + a11) * 0.25
+    return out
+
+
 def _cast_body(
-    view: _BodyView,
-    c2i: np.ndarray,
-    sun_c: np.ndarray,
-    cfg: CameraConfig,
-    f: float,
-    cx: float,
-    cy: float,
+    view: _BodyView, c2i: np.ndarray, sun_c: np.ndarray, cfg: CameraConfig, f: float, cx: float, cy: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ray-cast one body over its box: flat pixel indices within the box, depth (m) and signal (e-/s) of hits."""
+    """Ray-cast one body over its box: flat pixel indices within the box, depth (m) and signal (e-/s) of hits.
+
+    Small bodies are cast at every pixel. Wider ones are cast at every second pixel first; the 2x2 cells whose four
+    corners hit the body at similar depths are interpolated (the shading is smooth there), and every pixel of the
+    other cells that touch the body (limb, occluding edges) is cast on its own.
+    """
     r0, r1, c0, c1 = view.box
-    w = c1 - c0
-    body = view.body
-    p = -view.centre_c  # camera relative to the body centre, camera frame
-    dist = float(np.linalg.norm(p))
-    dxs = (np.arange(c0, c1, dtype=np.float64) - cx) / f
-    dys = (np.arange(r0, r1, dtype=np.float64) - cy) / f
-    dx = np.broadcast_to(dxs[None, :], (r1 - r0, w)).ravel()
-    dy = np.broadcast_to(dys[:, None], (r1 - r0, w)).ravel()
-    inv = 1.0 / np.sqrt(dx * dx + dy * dy + 1.0)
-    # squared miss distance of each ray from the centre, |p x d|^2, free of cancellation
-    k1 = p[1] - p[2] * dy
-    k2 = p[2] * dx - p[0]
-    k3 = p[0] * dy - p[1] * dx
-    b2 = (k1 * k1 + k2 * k2 + k3 * k3) * (inv * inv)
-    idx = np.flatnonzero(b2 < view.r_max_m**2)
-    if idx.size == 0:
-        return idx, np.empty(0), np.empty(0)
-    b2 = b2[idx]
-    inv = inv[idx]
-    d0, d1, d2 = dx[idx] * inv, dy[idx] * inv, inv
-    t_c = -(p[0] * d0 + p[1] * d1 + p[2] * d2)
-
-    e3 = p / dist
-    e1, e2 = _view_basis(e3)
-    view_to_cam = np.stack([e1, e2, e3], axis=1)
-    view_to_ast = Rotation.from_quat(body.q_body_to_inertial).as_matrix().T @ c2i @ view_to_cam
-    table = _shape_table(body, view_to_ast)
-    # ray direction and closest point in view coordinates (p is along e3), float32 from here on
-    de1 = (e1[0] * d0 + e1[1] * d1 + e1[2] * d2).astype(np.float32)
-    de2 = (e2[0] * d0 + e2[1] * d1 + e2[2] * d2).astype(np.float32)
-    de3 = (e3[0] * d0 + e3[1] * d1 + e3[2] * d2).astype(np.float32)
-    qe1 = (t_c * de1).astype(np.float32)
-    qe2 = (t_c * de2).astype(np.float32)
-    qe3 = (dist + t_c * de3).astype(np.float32)
-    b2f = b2.astype(np.float32)
-    r_min = np.float32(body.radius_m * body.shape.min_radius())
-    r_max = np.float32(view.r_max_m)
-    scale = np.float32((_TABLE_N - 1) / (2.0 * _TABLE_S))
-    off = np.float32(_TABLE_S)
-
-    def surface(sel: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
-        """g = |x| - r(u), dg/dh and the unit normal at the point h before the closest point of rays ``sel``."""
-        a1, a2, a3 = de1[sel], de2[sel], de3[sel]
-        x1, x2, x3 = qe1[sel] - h * a1, qe2[sel] - h * a2, qe3[sel] - h * a3
-        qn = np.sqrt(b2f[sel] + h * h)
-        den = np.maximum(qn + x3, np.float32(1e-3) * qn)
-        look = _remap_points(table, (x1 / den + off) * scale, (x2 / den + off) * scale)
-        r, n1, n2, n3 = look[:, 0], look[:, 1], look[:, 2], look[:, 3]
-        inv_n = 1.0 / np.sqrt(n1 * n1 + n2 * n2 + n3 * n3)
-        n1, n2, n3 = n1 * inv_n, n2 * inv_n, n3 * inv_n
-        inv_q = 1.0 / qn
-        nu = np.maximum((n1 * x1 + n2 * x2 + n3 * x3) * inv_q, np.float32(1e-3))
-        ud = (x1 * a1 + x2 * a2 + x3 * a3) * inv_q
-        nd = n1 * a1 + n2 * a2 + n3 * a3
-        # r(u) along the ray: its tangential gradient is r (u - n / (n.u)), and du/dh = -(d - (u.d) u) / |x|
-        slope = (h + r * (ud - nd / nu)) * inv_q
-        return qn - r, slope, n1, n2, n3
-
-    # silhouette: inside the smallest radius, or below the surface at the ray's closest point to the centre
-    inner = b2f < r_min * r_min
-    outer = np.flatnonzero(~inner)
-    g0 = surface(outer, np.zeros(outer.size, dtype=np.float32))[0]
-    hit = inner.copy()
-    hit[outer[g0 <= 0]] = True
-    sel = np.flatnonzero(hit)
-    lo = np.sqrt(np.maximum(r_min * r_min - b2f[sel], np.float32(0.0)))
-    hi = np.sqrt(np.maximum(r_max * r_max - b2f[sel], np.float32(0.0)))
-    h = hi.copy()
-    n1 = n2 = n3 = np.empty(0, dtype=np.float32)
-    # safeguarded Newton from outside the body inward: g >= 0 at hi, g <= 0 at lo
-    for _ in range(_RAY_ITERATIONS):
-        g, slope, n1, n2, n3 = surface(sel, h)
-        outside = g > 0
-        hi = np.where(outside, h, hi)
-        lo = np.where(outside, lo, h)
-        step = h - g / np.where(slope > 1e-6, slope, np.float32(1e-6))
-        h = np.where((step > lo) & (step < hi), step, np.float32(0.5) * (lo + hi)).astype(np.float32)
-    g, slope, n1, n2, n3 = surface(sel, h)
-    depth = t_c[sel] - h
-    sun_v = view_to_cam.T @ sun_c
-    mu0 = n1 * np.float32(sun_v[0]) + n2 * np.float32(sun_v[1]) + n3 * np.float32(sun_v[2])
-    mu = np.maximum(-(n1 * de1[sel] + n2 * de2[sel] + n3 * de3[sel]), np.float32(0.0))
-    lit = mu0 > 0
-    mu0 = np.where(lit, mu0, np.float32(0.0))
-    wls = np.float32(cfg.lommel_seeliger_weight)
-    law = np.where(lit, wls * 2 * mu0 / np.maximum(mu0 + mu, np.float32(1e-12)) + (1 - wls) * mu0, np.float32(0.0))
-    cos_alpha = float(sun_c @ e3)
-    signal = np.float32(cfg.body_signal_e_s * body.reflectance_factor * _phase_factor(cfg, cos_alpha)) * law
-    return idx[sel], depth, signal
+    h, w = r1 - r0, c1 - c0
+    caster = _BodyCaster(view, c2i, sun_c, cfg, f, cx, cy)
+    if caster.diameter_px < _SUBSAMPLE_MIN_PX:
+        rows = np.repeat(np.arange(r0, r1), w)
+        cols = np.tile(np.arange(c0, c1), h)
+        return caster.cast(rows, cols)
+    hc, wc = h // 2 + 2, w // 2 + 2
+    node_rows = np.repeat(r0 + 2 * np.arange(hc), wc)
+    node_cols = np.tile(c0 + 2 * np.arange(wc), hc)
+    hit_n, depth_n, sig_n = caster.cast(node_rows, node_cols)
+    hit = np.zeros(hc * wc, dtype=bool)
+    hit[hit_n] = True
+    hit = hit.reshape(hc, wc)
+    depth = np.zeros(hc * wc, dtype=np.float32)
+    depth[hit_n] = depth_n
+    depth = depth.reshape(hc, wc)
+    sig = np.zeros(hc * wc, dtype=np.float32)
+    sig[hit_n] = sig_n
+    sig = sig.reshape(hc, wc)
+    corners = hit[:-1, :-1].astype(np.int8) + hit[1:, :-1] + hit[:-1, 1:] + hit[1:, 1:]
+    d = np.stack([depth[:-1, :-1], depth[1:, :-1], depth[:-1, 1:], depth[1:, 1:]])
+    # a depth step of more than 3 cell widths inside a cell means an occluding edge of the surface there
+    smooth = (corners == 4) & (d.max(axis=0) - d.min(axis=0) < np.float32(6.0 * caster.dist / f))
+    rough = (corners > 0) & ~smooth
+    smooth_px = np.flatnonzero(np.repeat(np.repeat(smooth, 2, axis=0), 2, axis=1)[:h, :w])
+    rough_px = np.flatnonzero(np.repeat(np.repeat(rough, 2, axis=0), 2, axis=1)[:h, :w])
+    hit_r, depth_r, sig_r = caster.cast(r0 + rough_px // w, c0 + rough_px % w)
+    sig_full = _upsample2(sig)[:h, :w].ravel()[smooth_px]
+    depth_full = _upsample2(depth)[:h, :w].ravel()[smooth_px]
+    return (
+        np.concatenate([smooth_px, rough_px[hit_r]]),
+        np.concatenate([depth_full, depth_r]),
+        np.concatenate([sig_full, sig_r]),
+    )
 
 
 @dataclass
@@ -657,10 +791,9 @@ def normal_codes(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray
 
 
 @lru_cache(maxsize=64)
-def _dark_dn_table(offset_dn: float, mean_dn: float, sigma_dn: float, max_dn: int) -> np.ndarray:
-    """DN of a pixel without scene signal for each of the 65536 normal codes."""
-    dn = np.rint(offset_dn + mean_dn + sigma_dn * NORMAL_QUANTILES.astype(np.float64))
-    table = np.clip(dn, 0, max_dn).astype(np.uint16)
+def _dark_dn_table(cfg: CameraConfig, dark_e: float, max_dn: int) -> np.ndarray:
+    """DN of a pixel without scene signal for each of the 65536 normal codes (the same arithmetic as with signal)."""
+    table = _digitise(np.zeros(65536, np.float32), np.arange(65536, dtype=np.uint16), cfg, dark_e, max_dn)
     table.setflags(write=False)
     return table
 
@@ -731,7 +864,7 @@ def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.ra
                 rr = flat // (vc1 - vc0) + (vr0 - r0)
                 cc = flat % (vc1 - vc0) + (vc0 - c0)
                 k = rr * w + cc
-                nearer = dep < depth[k]
+                nearer = np.flatnonzero(dep < depth[k])
                 depth[k[nearer]] = dep[nearer]
                 rad[k[nearer]] = sig[nearer]
             hit = np.isfinite(depth).reshape(h, w)
@@ -766,13 +899,8 @@ def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.ra
 
     dark_e = cfg.dark_current_e_s * texp
     codes = normal_codes(rng, (size, size))
-    table = _dark_dn_table(
-        cfg.dark_offset_dn,
-        dark_e / cfg.gain_e_per_dn,
-        math.sqrt(dark_e + cfg.read_noise_e**2) / cfg.gain_e_per_dn,
-        max_dn,
-    )
-    frame = table[codes]
+    table = _dark_dn_table(cfg, dark_e, max_dn)
+    frame = np.take(table, codes)
     for r0, r1, c0, c1 in boxes:
         frame[r0:r1, c0:c1] = _digitise(signal[r0:r1, c0:c1], codes[r0:r1, c0:c1], cfg, dark_e, max_dn)
     points = np.concatenate([star_flat, hot_idx])

@@ -153,12 +153,13 @@ class ShapeModel:
     def lookup(self, ux: np.ndarray, uy: np.ndarray, uz: np.ndarray) -> np.ndarray:
         """Bilinear table look-up at body-frame unit directions given by components: (..., 4) [r, nx, ny, nz].
 
-        The normal is interpolated, not renormalised; the radius error is below 1e-3 of the bump amplitude.
+        The normal is interpolated, not renormalised; the radius agrees with ``radius`` to about 1e-4.
         """
         table = self.surface_table()
-        step = np.pi / (_TABLE_LAT - 1)
-        mx = ((np.arctan2(uy, ux) + np.pi) / step).astype(np.float32)
-        my = ((np.arcsin(np.clip(uz, -1.0, 1.0)) + np.pi / 2) / step).astype(np.float32)
+        inv_step = np.float32((_TABLE_LAT - 1) / np.pi)
+        ux, uy, uz = (np.asarray(a, dtype=np.float32) for a in (ux, uy, uz))
+        mx = (np.arctan2(uy, ux) + np.float32(np.pi)) * inv_step
+        my = (np.arcsin(np.clip(uz, np.float32(-1.0), np.float32(1.0))) + np.float32(np.pi / 2)) * inv_step
         shape = mx.shape
         mx2 = mx.reshape(-1, shape[-1]) if mx.ndim > 1 else mx.reshape(1, -1)
         my2 = my.reshape(mx2.shape)

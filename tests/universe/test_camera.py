@@ -110,10 +110,11 @@ def test_sphere_centroid_and_diameter_at_zero_phase(offset_px: tuple[float, floa
 
 
 def test_body_outside_field_leaves_frame_identical_to_empty_scene() -> None:
-    """A body whose limb lies 20 px beyond the frame edge changes no pixel (same noise seed, stars on)."""
+    """A body whose bounding sphere lies 20 px beyond the frame edge changes no pixel (same noise seed, stars on)."""
     cfg = CameraConfig()
     radius, rng_m = 390.0, 55_000.0
-    edge_angle = math.atan(512.0 / F_1024) + math.atan(20.0 / F_1024) + radius / rng_m
+    reach = radius * ShapeModel(seed=3).max_radius()
+    edge_angle = math.atan(532.0 / F_1024) + math.asin(reach / rng_m)
     centre = rng_m * np.array([math.sin(edge_angle), 0.0, math.cos(edge_angle)])
     sun = (-1.0, 0.0, -1.0)
     with_body = render_frame(
