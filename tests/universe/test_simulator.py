@@ -170,7 +170,8 @@ def test_truth_pixel_is_the_pinhole_projection_of_the_recorded_attitude() -> Non
     """TruthRecord.dimorphos_px equals a hand pinhole projection of Dimorphos with the record's own q and time."""
     u, record, _ = frame_run()
     g = u.geometry
-    v = Rotation.from_quat(record.q).inv().apply(g.dimorphos_position_m(record.t_s) - g.spacecraft_position_m(record.t_s))
+    rel = g.dimorphos_position_m(record.t_s) - g.spacecraft_position_m(record.t_s)
+    v = Rotation.from_quat(record.q).inv().apply(rel)
     expected = (C_1024 + F_1024 * v[0] / v[2], C_1024 + F_1024 * v[1] / v[2])
     assert record.t_s == pytest.approx(150.5, abs=1e-9)
     assert record.dimorphos_px == pytest.approx(expected, abs=1e-6)
