@@ -105,6 +105,13 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--size", type=int, default=512, help="side of the PNG and GIF images, px")
     d.add_argument("--gif-frame-ms", type=int, default=100, help="display time of each GIF frame, ms")
     d.set_defaults(func=cmd_render)
+    from ground.report import cmd_report
+    from ground.tmquery import add_tm_arguments
+
+    rep = sub.add_parser("report", help="(re)write a run folder's flyby report: report.html, report/, figures.json")
+    rep.add_argument("run_dir", type=Path)
+    rep.set_defaults(func=cmd_report)
+    add_tm_arguments(sub.add_parser("tm", help="list, print or export (CSV) archived telemetry parameters of a run"))
     return p
 
 
