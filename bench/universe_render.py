@@ -9,8 +9,13 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # one core, as the budget is stated
+# bench/universe.py would shadow the universe package: import from the repository root instead
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != _HERE]
+sys.path.insert(0, os.path.dirname(_HERE))
 
 import statistics  # noqa: E402
 import time  # noqa: E402  (the benchmark, not the renderer, reads the clock)

@@ -5,10 +5,13 @@ Model, in the order the light goes through it:
 - Pinhole camera: ``fov_deg`` across the full width, square pixels, principal point at the frame centre
   ``((W-1)/2, (H-1)/2)``, boresight ``CameraConfig.boresight_body`` (body +Z by default); image columns increase
   along camera +X (body +X by default), rows along camera +Y.
-- Bodies: star-shaped irregular surfaces (``universe.shapes``) ray-cast per pixel, only inside the bounding box of
-  each body's projected bounding sphere. The ray/surface intersection is a fixed-point iteration on the radius
-  looked up (bilinear, OpenCV ``remap``) in a per-frame table of radius and normal over the stereographic
-  projection of the directions seen from the camera, so each iteration costs a few array operations per pixel.
+- Bodies: star-shaped irregular surfaces (``universe.shapes``) ray-cast inside the bounding box of each body's
+  projected bounding sphere only. Per frame and body, radius and normal are tabulated over the stereographic
+  projection of the directions seen from the camera; the silhouette is exact (up to sampling): the largest
+  perspective-projected radius of the surface slice in each image polar-angle bin. Rays inside it get their front
+  intersection by safeguarded Newton steps on ``|x| - r(u)`` along the ray (bilinear look-ups with OpenCV
+  ``remap``). Bodies wider than 48 px are cast on a 2 px grid first: 2x2 cells whose corners all hit at similar
+  depths are interpolated (smooth shading), every pixel of the other cells touching the body is cast on its own.
   Bodies whose boxes overlap are composited by depth (occultation); cast shadows are not modelled.
 - Photometry: lunar-Lambert law (McEwen 1991) ``L * 2 mu0 / (mu0 + mu) + (1 - L) * mu0``, a Lommel-Seeliger
   (single scattering, right for dark regolith: uniform disc at zero phase, sharp terminator) plus a Lambert part
@@ -19,9 +22,9 @@ Model, in the order the light goes through it:
 - Stars: a seeded all-sky catalogue (uniform directions, counts ``N(<m) = 4800 * 10^(0.46 (m - 6))`` over the sky,
   generated lazily per cell of a cube-sphere tiling) and/or an explicit ``StarCatalogue``; stars behind a body are
   hidden.
-- Optics and motion: Gaussian PSF of ``psf_sigma_px`` convolved with a line of the image motion during the exposure
-  (body rate for everything, plus the translation of each body's line of sight when ``camera_velocity_m_s`` is
-  given); the scene geometry is that of mid-exposure. The roll component of the smear (rotation about the
+- Optics and motion: Gaussian PSF of ``psf_sigma_px`` (kernel cut at 3.5 sigma) convolved with a line of the image
+  motion during the exposure (body rate for everything, plus the translation of each body's line of sight when
+  ``camera_velocity_m_s`` is given); the scene geometry is that of mid-exposure. The roll component of the smear (rotation about the
   boresight) is evaluated at each star's and each body's position, not across an extended body.
 - Detector: signal electrons plus dark current; noise is Gaussian with the Poisson variance (signal + dark) plus
   read noise, digitised with the gain and dark offset, rounded and clipped to the bit depth; hot pixels at fixed
@@ -706,8 +709,8 @@ def sky_stars(seed: int, c2i: np.ndarray, cfg: CameraConfig) -> tuple[np.ndarray
 # ----------------------------------------------------------------------------------------------------------------
 # Plume
 
-_PLUME_GRID = 48  # coarse nodes per side: the plume is diffuse
-_PLUME_STEPS = 24  # line-of-sight samples, uniform in the angle seen from the source (exact for the 1/r^2 law)
+_PLUME_GRID = 64  # coarse nodes per side: the plume is diffuse
+_PLUME_STEPS = 16  # line-of-sight samples, uniform in the angle seen from the source (exact for the 1/r^2 law)
 
 
 def plume_cross_section_m2(plume: PlumeConfig, t_s: float) -> float:
@@ -762,10 +765,10 @@ def _plume_signal(
     rr = np.linalg.norm(x, axis=-1)
     axis_c = c2i.T @ _unit3("PlumeConfig.axis_inertial", plume.axis_inertial)
     cos_ang = (x @ axis_c) / np.maximum(rr, 1e-9)
-    # soft cone edge, 3 deg wide, so the fan has no aliased border
-    edge = np.clip((cos_ang - math.cos(math.radians(plume.half_angle_deg + 1.5))) / (
-        math.cos(math.radians(plume.half_angle_deg - 1.5)) - math.cos(math.radians(plume.half_angle_deg + 1.5))
-    ), 0.0, 1.0)
+    # the cone wall is not sharp (ejection directions scatter): a linear ramp over +-5 deg about the half-angle
+    c_out = math.cos(math.radians(min(plume.half_angle_deg + 5.0, 90.0)))
+    c_in = math.cos(math.radians(max(plume.half_angle_deg - 5.0, 0.0)))
+    edge = np.clip((cos_ang - c_out) / (c_in - c_out), 0.0, 1.0)
     inside = edge * (rr >= src.radius_m)
     omega = 2.0 * math.pi * (1.0 - math.cos(math.radians(plume.half_angle_deg)))
     dphi = 2.0 * phi_max / _PLUME_STEPS

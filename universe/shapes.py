@@ -47,8 +47,8 @@ class ShapeModel:
     seed: int = 0
     irregularity: float = 0.08
     axis_ratios: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    n_bumps: int = 24
-    bump_width_deg: tuple[float, float] = (12.0, 40.0)
+    n_bumps: int = 40
+    bump_width_deg: tuple[float, float] = (15.0, 40.0)
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False, hash=False)
 
     def __post_init__(self) -> None:

@@ -423,3 +423,64 @@ def test_shape_table_lookup_matches_direct_evaluation() -> None:
     u = fibonacci_sphere(5000)
     look = shape.lookup(u[:, 0].reshape(50, 100), u[:, 1].reshape(50, 100), u[:, 2].reshape(50, 100))
     assert np.max(np.abs(look[..., 0].ravel() - shape.radius(u))) < 1e-3
+
+
+def test_rotated_ellipsoid_matches_closed_form_ray_intersection() -> None:
+    """An ellipsoid (no bumps) matches the closed-form ray/ellipsoid silhouette and lunar-Lambert shading."""
+    cfg = CameraConfig(hot_pixel_count=0, phase_slope_mag_deg=0.0, read_noise_e=0.0, dark_current_e_s=0.0,
+                       body_signal_e_s=1.0e6, psf_sigma_px=0.31)
+    axes = np.array([1.3, 1.0, 0.8])
+    radius, rng_m = 390.0, 40_000.0
+    q_ast = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_quat()
+    centre = np.array([0.0, 0.0, rng_m])
+    sun = np.array([0.6, -0.3, -1.0]) / np.linalg.norm([0.6, -0.3, -1.0])
+    body = Body(centre, radius, ShapeModel(irregularity=0.0, axis_ratios=tuple(axes)), q_ast)
+    frame = render_frame(scene((body,), sun=tuple(sun)), cfg, PlumeConfig(), np.random.default_rng(0))
+    signal_e = (frame.astype(float) - cfg.dark_offset_dn) * cfg.gain_e_per_dn
+    # closed form: rays from the origin through pixel centres against x^T A x = 1 in the body frame
+    semi = radius * axes / np.prod(axes) ** (1 / 3)
+    to_body = Rotation.from_quat(q_ast).as_matrix()  # columns: body axes in inertial
+    rows, cols = np.mgrid[0:1024, 0:1024]
+    d = np.stack([(cols - C_1024) / F_1024, (rows - C_1024) / F_1024, np.ones((1024, 1024))], axis=-1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    db, o = d @ to_body, -centre @ to_body
+    a = np.sum((db / semi) ** 2, -1)
+    b = 2 * np.sum(db * o / semi**2, -1)
+    c = np.sum((o / semi) ** 2) - 1
+    disc = b * b - 4 * a * c
+    hit = disc >= 0
+    t = (-b - np.sqrt(np.where(hit, disc, 0))) / (2 * a)
+    x = o + t[..., None] * db
+    n = (x / semi**2) @ to_body.T
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    mu0 = np.clip(n @ sun, 0, None)
+    mu = np.clip(-np.sum(n * d, -1), 0, None)
+    w = cfg.lommel_seeliger_weight
+    expected = np.where(hit, 1.0e6 * 0.01 * (w * 2 * mu0 / np.maximum(mu0 + mu, 1e-12) + (1 - w) * mu0), 0.0)
+    lit = expected > 0.2 * expected.max()
+    seen = signal_e > 0.1 * expected.max()
+    assert np.count_nonzero(lit & ~seen) + np.count_nonzero(seen & ~hit) < 0.005 * hit.sum()
+    interior = ndimage.binary_erosion(lit, iterations=3)
+    rel = np.abs(signal_e[interior] - expected[interior]) / expected.max()
+    assert np.median(rel) < 0.005 and np.percentile(rel, 99) < 0.03
+
+
+def test_camera_motion_smears_a_body_by_v_t_over_range() -> None:
+    """A camera moving at v across the line of sight stretches a body's image variance by (v T f / range)^2 / 12."""
+    cfg = CameraConfig(
+        hot_pixel_count=0, read_noise_e=0.0, dark_current_e_s=0.0, lommel_seeliger_weight=1.0, body_signal_e_s=1e5
+    )
+    rng_m, exposure = 55_000.0, 0.05
+    body = Body(np.array([0.0, 0.0, rng_m]), 100.0, SPHERE)
+    still = scene((body,), exposure_s=exposure)
+    moving = scene((body,), exposure_s=exposure, camera_velocity_m_s=np.array([0.0, 300.0, 0.0]))
+    moments = []
+    for s in (still, moving):
+        img = render_frame(s, cfg, PlumeConfig(), np.random.default_rng(0)).astype(float) - cfg.dark_offset_dn
+        rows = np.arange(1024)[:, None]
+        m = img.sum()
+        yc = (img * rows).sum() / m
+        moments.append((yc, (img * (rows - yc) ** 2).sum() / m))
+    length_px = 300.0 * exposure / rng_m * F_1024
+    assert moments[1][1] - moments[0][1] == pytest.approx(length_px**2 / 12, rel=0.05)
+    assert moments[1][0] == pytest.approx(moments[0][0], abs=0.05)
