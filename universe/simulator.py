@@ -46,23 +46,35 @@ class FaultBook:
 
     def __init__(self, faults: list[FaultConfig]) -> None:
         self.faults = list(faults)
-        self._active: set[int] = set()
+        self._started: set[int] = set()
+        self._ended: set[int] = set()
+        self._first_call = True
 
     def active(self, kind: str, t_s: float) -> list[FaultConfig]:
         """Faults of ``kind`` whose window contains ``t_s``."""
         return [f for f in self.faults if f.kind == kind and f.start_s <= t_s < f.end_s]
 
     def transitions(self, t_s: float) -> Iterator[str]:
-        """Log lines for the faults that started or ended by ``t_s`` since the last call."""
+        """Log lines for the faults that started or ended by ``t_s`` since the last call (non-decreasing times).
+
+        A window that falls wholly between two calls (an instantaneous clock jump, say) logs its start and its end
+        at the same call: it still acted (the oscillator steps at ``start_s`` whatever the control period). Windows
+        that ended before the first call (before the run) are not logged.
+        """
+        if self._first_call:
+            self._first_call = False
+            for i, f in enumerate(self.faults):
+                if f.end_s < t_s:
+                    self._started.add(i)
+                    self._ended.add(i)
         for i, f in enumerate(self.faults):
-            on = f.start_s <= t_s < f.end_s
             what = f.kind + (f" wheel {f.wheel}" if f.wheel is not None else "") + (
                 f" magnitude {f.magnitude:g}" if f.magnitude is not None else "")
-            if on and i not in self._active:
-                self._active.add(i)
+            if i not in self._started and t_s >= f.start_s:
+                self._started.add(i)
                 yield f"fault start t={t_s:.2f} s: {what} (window {f.start_s:g}..{f.end_s:g} s)"
-            elif not on and i in self._active:
-                self._active.discard(i)
+            if i in self._started and i not in self._ended and t_s >= f.end_s:
+                self._ended.add(i)
                 yield f"fault end   t={t_s:.2f} s: {what}"
 
 

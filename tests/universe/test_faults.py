@@ -260,3 +260,30 @@ def test_link_outage_loses_what_is_radiated_during_it_both_ways() -> None:
     # ground radiates one telecommand per ground step, at t = 100, 101 and 102 s: the one at 102 s is inside
     assert sent_at == pytest.approx([100.0, 101.0])
     assert run.universe.link.downlink.lost == len(IN_WINDOW) and run.universe.link.uplink.lost == 1
+
+
+def test_a_window_between_two_steps_is_still_logged() -> None:
+    """An instantaneous clock jump (start_s = end_s, between steps) steps OBT and logs its start and end at that step."""
+    jump = FaultConfig(kind="clock_jump", start_s=101.05, end_s=101.05, magnitude=-1.5)
+    run = Run(scenario([jump]))
+    steps = np.diff([r.obt_s for r in run.requests])
+    assert steps[10] == pytest.approx(DT_S - 1.5, abs=1e-6)  # request 11 is the first after the jump
+    assert log_times(run.log, "start", "clock_jump") == pytest.approx([101.1])
+    assert log_times(run.log, "end", "clock_jump") == pytest.approx([101.1])
+
+
+def test_fault_book_logs_windows_by_the_calls_that_cross_their_edges() -> None:
+    """FaultBook: a window before the first call is silent, one open at the first call starts there, others start and
+    end at the first call at or after their edges."""
+    from universe.simulator import FaultBook
+
+    book = FaultBook([
+        FaultConfig(kind="frame_lost", start_s=0.0, end_s=5.0),  # wholly before the run
+        FaultConfig(kind="frame_blank", start_s=5.0, end_s=12.0),  # open when the run starts
+        FaultConfig(kind="star_tracker_outage", start_s=10.5, end_s=10.7),  # between two calls
+    ])
+    lines = {t: list(book.transitions(t)) for t in (10.0, 10.3, 11.0, 11.5, 12.0)}
+    assert [len(v) for v in lines.values()] == [1, 0, 2, 0, 1]
+    assert "frame_blank" in lines[10.0][0] and lines[10.0][0].startswith("fault start t=10.00")
+    assert [line.split(":")[0] for line in lines[11.0]] == ["fault start t=11.00 s", "fault end   t=11.00 s"]
+    assert "star_tracker_outage" in lines[11.0][0] and lines[12.0][0].startswith("fault end   t=12.00 s: frame_blank")
