@@ -777,7 +777,18 @@ def _plume_signal(
     cos_alpha = float(sun_c @ (p / np.linalg.norm(p)))
     coarse = (cfg.body_signal_e_s * plume.reflectance_factor * _phase_factor(cfg, cos_alpha)) * (-np.expm1(-tau))
     fine = cv2.resize(coarse.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
-    return box, fine
+    # keep the part that can change a pixel: more than 1 % of the read noise (or of one electron) in the exposure
+    floor_e_s = 0.01 * max(cfg.read_noise_e, 1.0) / scene.exposure_s
+    rows_on = np.flatnonzero((coarse > floor_e_s).any(axis=1))
+    cols_on = np.flatnonzero((coarse > floor_e_s).any(axis=0))
+    if rows_on.size == 0:
+        return None
+    # one node of margin: bilinear resampling spreads a node over its neighbours' cells
+    ra = int(max(0, math.floor((rows_on[0] - 0.5) * h / gh)))
+    rb = int(min(h, math.ceil((rows_on[-1] + 2.5) * h / gh)))
+    ca = int(max(0, math.floor((cols_on[0] - 0.5) * w / gw)))
+    cb = int(min(w, math.ceil((cols_on[-1] + 2.5) * w / gw)))
+    return (r0 + ra, r0 + rb, c0 + ca, c0 + cb), fine[ra:rb, ca:cb]
 
 
 # ----------------------------------------------------------------------------------------------------------------
