@@ -30,6 +30,7 @@ from ground.report import (  # noqa: E402
     Section,
     binned_px,
     candidate_axes,
+    centroid_errors_px,
     estimate_at,
     uploaded_nominal,
 )
@@ -149,6 +150,7 @@ def wheels_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sec
     for ax, lim in ((ax_h, w.max_momentum_nms), (ax_u, w.max_torque_nm * 1e3)):
         ax.axhline(lim, color=LIMIT_COLOUR, ls="--", lw=1.2, label="limit")
         ax.axhline(-lim, color=LIMIT_COLOUR, ls="--", lw=1.2)
+        ax.set_ylim(-1.5 * lim, 1.5 * lim)  # limits in view, room for the legend above them
         _ca_lines(ax, cfg)
         ax.legend(loc="upper left", fontsize=7, ncol=6)
     ax_h.set_ylabel("momentum, N m s")
@@ -256,6 +258,30 @@ def estimates_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> 
         ax.legend(loc="upper right", fontsize=8)
     ax_t.set_ylabel("C/A time error, s")
     ax_d.set_ylabel("C/A distance error, km")
+    s.png = png_bytes(fig, cfg.plot_dpi)
+    return s
+
+
+def centroid_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+    """Distance of each detected Dimorphos centroid from its true projection (binned px), with the tolerance."""
+    tol = cfg.centroid_tolerance_px
+    s = Section("Centroid error", f"Detected Dimorphos centroid (NavigationReport) minus the truth projection at the "
+                f"binned scale; the paper's tolerance is {tol:g} px.", file_name="centroid_error.png")
+    ids, errs = centroid_errors_px(data)
+    if not ids.size:
+        s.missing.append("no detection with a true position to compare (needs NavigationReports and the truth)")
+        return s
+    assert data.truth is not None  # centroid_errors_px found pairs, so the truth is there
+    obt_of = {int(f): t for f, t in zip(data.truth.frame_id, data.truth.obt_s, strict=True) if f >= 0}
+    t = np.array([obt_of[int(i)] for i in ids]) - figs.true_ca_obt_s
+    fig, (ax,) = _figure(1, 2.8)
+    ax.semilogy(t, np.maximum(errs, 1e-2), ".", color=TM_COLOUR, ms=4, label="|detected - true|")
+    ax.axhline(tol, color=LIMIT_COLOUR, ls="--", lw=1.2, label=f"tolerance {tol:g} px")
+    _ca_lines(ax, cfg)
+    ax.set_ylabel("centroid error, binned px")
+    ax.legend(loc="upper left", fontsize=8)
+    over = int((errs > tol).sum())
+    s.notes.append(f"{errs.size} detections compared, {over} beyond {tol:g} px, median {np.median(errs):.2f} px")
     s.png = png_bytes(fig, cfg.plot_dpi)
     return s
 
@@ -438,7 +464,7 @@ def gif_frame(data: RunData, frame_id: int, ca_obt_s: float) -> Image.Image:
 def flyby_gif(data: RunData, ca_obt_s: float, cfg: ReportConfig) -> tuple[bytes, int]:
     """The animated GIF of the saved frames with detections drawn, and its frame count.
 
-    At most ``gif_max_frames`` frames evenly spread; halved until the file is under ``gif_max_bytes``.
+    At most ``gif_max_frames`` frames evenly spread, fewer until the file is under ``gif_max_bytes``.
     """
     count = cfg.gif_max_frames
     while True:
@@ -449,7 +475,8 @@ def flyby_gif(data: RunData, ca_obt_s: float, cfg: ReportConfig) -> tuple[bytes,
                        loop=0, disposal=1)
         if buf.tell() <= cfg.gif_max_bytes or len(ids) == 1:
             return buf.getvalue(), len(ids)
-        count = max(1, len(ids) // 2)
+        # frames cost about the same each: scale the count to the budget, with 5% margin
+        count = max(1, min(len(ids) - 1, int(len(ids) * 0.95 * cfg.gif_max_bytes / buf.tell())))
 
 
 def gif_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
@@ -470,6 +497,6 @@ def gif_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sectio
 
 def plot_sections(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> list[Section]:
     """Every image section of the report, in reading order."""
-    makers = (pointing_section, rate_section, wheels_section, theta_section, estimates_section, modes_section,
-              mosaic_section, gif_section)
+    makers = (pointing_section, rate_section, wheels_section, theta_section, estimates_section, centroid_section,
+              modes_section, mosaic_section, gif_section)
     return [make(data, figs, cfg) for make in makers]

@@ -130,7 +130,7 @@ class Telemetry:
     estimates: list[tuple[float, pus.EstimateReport]] = field(default_factory=list)
     mode_changes: list[tuple[float, pus.ModeChangedEvent]] = field(default_factory=list)
     events: list[tuple[float, pus.EventReport]] = field(default_factory=list)
-    by_type: dict[str, int] = field(default_factory=dict)
+    by_type: dict[tuple[int, int, str], int] = field(default_factory=dict)  # (service, subtype, report): count
 
 
 def complete_packets(stream: bytes) -> tuple[list[bytes], int]:
@@ -158,8 +158,8 @@ def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
         except pus.PacketError:
             tm.undecodable += 1
             continue
-        name = type(report).__name__
-        tm.by_type[name] = tm.by_type.get(name, 0) + 1
+        key = (header.service, header.subservice, type(report).__name__)
+        tm.by_type[key] = tm.by_type.get(key, 0) + 1
         t = header.obt_s
         if isinstance(report, pus.Housekeeping):
             tm.housekeeping.append((t, report))
@@ -238,7 +238,9 @@ def load_run(run_dir: Path) -> RunData:
         raise ReportError(f"{run_dir}: cannot report without the scenario: {err}") from None
     missing: list[str] = []
     truth = None
-    if (run_dir / "truth.csv").is_file():
+    if (run_dir / "truth.csv").is_file() and (run_dir / "truth.csv").stat().st_size == 0:
+        missing.append("truth.csv is empty: the universe sent no truth")
+    elif (run_dir / "truth.csv").is_file():
         try:
             truth = load_truth(run_dir / "truth.csv")
         except ReportError as err:
@@ -578,14 +580,13 @@ def counts_section(data: RunData, figs: ReportFigures) -> Section:
         rows += [("packets archived", c.get("stored", 0)), ("undecodable", c.get("undecodable", 0)),
                  ("sequence gaps", c.get("gaps", 0)), ("packets missing in gaps", c.get("missing", 0)),
                  ("duplicates / late", f"{c.get('duplicates', 0)} / {c.get('late', 0)}")]
-        rows += [(k, v) for k, v in c.items() if k.startswith("TM[")]
     elif tm is not None:
         s.missing.append("no archive.sqlite: counts from the packet stream, no sequence-gap analysis")
         rows += [("packets in " + tm.source, tm.packets), ("undecodable", tm.undecodable)]
     else:
         s.missing.append("no telemetry: no packet counts")
     if tm is not None:
-        rows += [(f"decoded {k}", v) for k, v in sorted(tm.by_type.items())]
+        rows += [(f"TM[{svc},{sub}] {name}", n) for (svc, sub, name), n in sorted(tm.by_type.items())]
         rows += [("events (service 5)", len(tm.events)), ("mode changes", len(tm.mode_changes))]
     if truth is not None:
         rows += [("control periods of truth", len(truth)), ("camera frames exposed", int((truth.frame_id >= 0).sum()))]

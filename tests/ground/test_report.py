@@ -201,7 +201,7 @@ def test_html_embeds_every_plot_and_files_match(full_run) -> None:
     page = path.read_text()
     uris = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", page)
     files = sorted((run / "report").glob("*.png"))
-    assert len(uris) == len(files) == 7
+    assert len(uris) == len(files) == 8
     embedded = sorted(base64.b64decode(u) for u in uris)
     assert embedded == sorted(f.read_bytes() for f in files)
     assert all(b.startswith(b"\x89PNG\r\n\x1a\n") for b in embedded)
@@ -218,7 +218,7 @@ def test_gif_has_one_frame_per_saved_png(full_run) -> None:
 
 
 def test_gif_is_thinned_to_max_frames_and_bytes(full_run) -> None:
-    """gif_max_frames caps the frame count; a byte budget halves the frames until the file fits."""
+    """gif_max_frames caps the frame count; a byte budget thins the frames until the file fits."""
     run, _, _ = full_run
     data = load_run(run)
     gif, n = plots.flyby_gif(data, CA_OBT, ReportConfig(gif_max_frames=6))
@@ -358,3 +358,38 @@ def test_mode_intervals_from_events() -> None:
     hk = [(0.0, int(pus.Mode.STANDBY)), (99.0, int(pus.Mode.NOMINAL_TRACKING))]
     assert plots.mode_intervals(ch, hk, 99.0) == [(0.0, 10.0, 1), (10.0, 50.0, 2), (50.0, 99.0, 3)]
     assert plots.mode_intervals([], [(0.0, 1), (1.0, 1), (2.0, 2)], 3.0) == [(0.0, 2.0, 1), (2.0, 3.0, 2)]
+
+
+def test_truncated_tm_bin_without_archive(tmp_path: Path) -> None:
+    """tm.bin cut mid-packet and no archive.sqlite: every whole packet is used, the cut tail is reported."""
+    run = make_run(tmp_path / "cut", frames=False, truth_rows=0)
+    (run / "archive.sqlite").unlink()
+    raw = (run / "tm.bin").read_bytes()
+    packets = pus.split_packets(raw)
+    (run / "tm.bin").write_bytes(raw[: len(raw) - 10])
+    path, figs = build_report(run)
+    page = path.read_text()
+    assert f"tm.bin ends with {len(packets[-1]) - 10} octets of an incomplete packet" in page
+    assert "no archive.sqlite: counts from the packet stream" in page
+    assert f"<td>packets in tm.bin</td><td>{len(packets) - 1}</td>" in page
+    assert figs.ca_time_error_grid_s == pytest.approx(2.0, abs=1e-6)
+
+
+def test_header_only_truth_and_no_navigation(tmp_path: Path) -> None:
+    """An empty truth.csv (or header only) and telemetry without NavigationReports: each section says so."""
+    header_only = make_run(tmp_path / "header", telemetry=False, frames=False, truth_rows=1)
+    first_line = (header_only / "truth.csv").read_text().splitlines()[0]
+    (header_only / "truth.csv").write_text(first_line + "\n")
+    assert load_run(header_only).truth is None
+    assert "truth.csv has no rows: the universe sent no truth" in load_run(header_only).missing
+    run = make_run(tmp_path / "bare", frames=False, truth_rows=0)
+    kept = [p for p in pus.split_packets((run / "tm.bin").read_bytes())
+            if not isinstance(pus.decode_tm(p)[1], pus.NavigationReport)]
+    (run / "archive.sqlite").unlink()
+    (run / "tm.bin").write_bytes(b"".join(kept))
+    path, figs = build_report(run)
+    page = path.read_text()
+    assert "truth.csv is empty" in page
+    assert "no NavigationReport with a measured line of sight" in page
+    assert figs.in_view_fraction is None and figs.max_pointing_error_deg is None
+    assert re.findall(r'<td class="(pass|fail|na)">', page) == ["na"] * 4
