@@ -393,6 +393,9 @@ def report_figures(data: RunData, cfg: ReportConfig) -> tuple[ReportFigures, lis
     basis = "camera frames"
     if truth is not None:
         peak = float(np.degrees(np.max(np.linalg.norm(truth.omega_rad_s, axis=1))))
+        i = int(np.nanargmin(truth.range_m))
+        notes.append(f"closest true range to Dimorphos: {truth.range_m[i] / 1e3:.3f} km at C/A"
+                     f"{truth.obt_s[i] - ca_obt:+.1f} s (the C/A figures are about the Didymos barycentre)")
         win = (truth.obt_s >= start) & (truth.obt_s <= end)
         if truth.obt_s[-1] < end:
             notes.append(f"the truth ends at C/A{truth.obt_s[-1] - ca_obt:+.1f} s, before the window ends")
@@ -420,7 +423,7 @@ def report_figures(data: RunData, cfg: ReportConfig) -> tuple[ReportFigures, lis
                      f"{cfg.estimate_before_ca_s:g} s)")
     if est is not None and est.continuous_ca_obt_s is not None and est.continuous_ca_distance_km is not None:
         cont_t, cont_d = est.continuous_ca_obt_s - ca_obt, est.continuous_ca_distance_km - true_d
-    half_limit = sc.universe.camera.fov_deg * cfg.max_pointing_error_fov_fraction
+    pointing_limit_deg = sc.universe.camera.fov_deg * cfg.max_pointing_error_fov_fraction
     figs = ReportFigures(
         in_view_fraction=in_view,
         in_view_basis=basis,
@@ -435,7 +438,7 @@ def report_figures(data: RunData, cfg: ReportConfig) -> tuple[ReportFigures, lis
         ca_distance_error_grid_km=grid_d,
         ca_distance_error_continuous_km=cont_d,
         in_view_pass=None if in_view is None else in_view >= cfg.in_view_required,
-        pointing_pass=None if max_err is None else max_err <= half_limit,
+        pointing_pass=None if max_err is None else max_err <= pointing_limit_deg,
         rate_pass=None if peak is None else peak >= cfg.peak_rate_required_deg_s,
         centroid_pass=None if max_centroid is None else max_centroid <= cfg.centroid_tolerance_px,
     )
@@ -510,7 +513,6 @@ class Section:
     missing: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     html_body: str = ""
-    image_mime: str = "image/png"
 
 
 _CSS = """
@@ -560,7 +562,7 @@ def report_html(title: str, requirements: list[RequirementRow], notes: list[str]
         parts.append(_list(s.missing, "missing"))
         if s.png is not None:
             uri = base64.b64encode(s.png).decode("ascii")
-            parts.append(f"<img alt='{html.escape(s.title)}' src='data:{s.image_mime};base64,{uri}'>")
+            parts.append(f"<img alt='{html.escape(s.title)}' src='data:image/png;base64,{uri}'>")
         parts.append(s.html_body)
         parts.append(_list(s.notes))
     parts.append("</body></html>")

@@ -393,3 +393,15 @@ def test_header_only_truth_and_no_navigation(tmp_path: Path) -> None:
     assert "no NavigationReport with a measured line of sight" in page
     assert figs.in_view_fraction is None and figs.max_pointing_error_deg is None
     assert re.findall(r'<td class="(pass|fail|na)">', page) == ["na"] * 4
+
+
+def test_flyby_report_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`flyby report RUN_DIR` rewrites the report and exits 0; a folder without scenario exits 2 naming it."""
+    from flyby.cli import main
+
+    run = make_run(tmp_path / "cli", telemetry=False, frames=False, truth_rows=600)
+    assert main(["report", str(run)]) == 0
+    assert f"{run / 'report.html'}: some requirement FAILS or was not assessed" in capsys.readouterr().out
+    assert (run / "report.html").exists() and (run / "figures.json").exists()
+    assert main(["report", str(tmp_path / "nowhere")]) == 2
+    assert "nowhere: no such run folder" in capsys.readouterr().err
