@@ -187,6 +187,9 @@ def theta_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sect
     s.notes.append(f"chosen: {how}: C/A {chosen[0] - ca:+.2f} s from the truth, {chosen[1]:.2f} km; grid of "
                    f"{times_c.size} x {dists_c.size} candidates around the uploaded nominal (C/A "
                    f"{nominal.ca_time_obt_s - ca:+.2f} s, {nominal.ca_distance_km:.2f} km)")
+    if data.scenario.ground.upload_nominal_at_s is not None:
+        s.notes.append("the grid is rebuilt with ground's a-priori OBT-UTC offset; this scenario uploads the nominal "
+                       "later, with a fitted correlation, so the on-board grid may be shifted by the difference")
     grid_t = np.linspace(t_m.min(), t_m.max(), 200)
     chosen_traj = nominal.with_ca(*chosen)
     fig, (ax, ax_r) = _figure(2, 3.0)
@@ -467,9 +470,13 @@ def flyby_gif(data: RunData, ca_obt_s: float, cfg: ReportConfig) -> tuple[bytes,
     At most ``gif_max_frames`` frames evenly spread, fewer until the file is under ``gif_max_bytes``.
     """
     count = cfg.gif_max_frames
+    drawn: dict[int, Image.Image] = {}  # a thinner retry reuses the frames already drawn
     while True:
         ids = spread_ids(list(data.frames), count)
-        frames = [gif_frame(data, fid, ca_obt_s) for fid in ids]
+        for fid in ids:
+            if fid not in drawn:
+                drawn[fid] = gif_frame(data, fid, ca_obt_s)
+        frames = [drawn[fid] for fid in ids]
         buf = io.BytesIO()
         frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=cfg.gif_frame_ms,
                        loop=0, disposal=1)
