@@ -21,6 +21,7 @@ It never reads the clock, the bus or the disk: the node feeds it.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -40,6 +41,7 @@ from obsw.trajectory import NominalTrajectory
 from universe.config import CameraConfig, SpacecraftConfig
 
 TRACKING_MODES = (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING)
+ATTITUDE_HISTORY_PERIODS = 32  # attitude estimates kept to turn a frame's LOS with the attitude at its exposure
 POINTING_MODES = (Mode.ACQUISITION, *TRACKING_MODES)
 
 
@@ -76,8 +78,10 @@ class FlightSoftware:
         self._next_frame_obt: float | None = None
         self._tm_seq = 0
         self._msg_counter = 0
-        self._last_obt: float | None = None
         self._q_est: np.ndarray | None = None
+        self._attitude_history: deque[tuple[float, np.ndarray]] = deque(maxlen=ATTITUDE_HISTORY_PERIODS)
+        self.autonomous_trajectory: NominalTrajectory | None = None
+        self._autonomous_count = -1
         self._hk_next: float | None = None
         self._estimate_next = float("-inf")
         self._time_report_period: float | None = None
@@ -104,8 +108,8 @@ class FlightSoftware:
     def step(self, req: StepRequest, frame: np.ndarray | None) -> StepReply:
         """One control period: see the module docstring for the order of work."""
         obt = req.obt_s
-        dt = self.cfg.control_period_s if self._last_obt is None else max(obt - self._last_obt, 0.0)
-        self._last_obt = obt
+        # the loops advance by the control period, not by OBT differences: a clock jump is not a long period
+        dt = self.cfg.control_period_s
         self._tm = []
         self._time_report(obt)
         for raw in req.uplink:
@@ -115,9 +119,9 @@ class FlightSoftware:
         q, omega = self._attitude(req, dt)
         wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
         wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ omega + wheel_speed)
-        los_i = self._image(frame, req, q) if frame is not None else None
-        self._mode_by_events(obt, los_i is not None)
-        torque = self._control(obt, dt, q, omega, wheel_h, los_i)
+        seen = self._image(frame, req) if frame is not None else None
+        self._mode_by_events(obt, seen is not None)
+        torque = self._control(obt, dt, q, omega, wheel_h, seen)
         frame_request = self._frame_request(obt)
         self._periodic_tm(obt, q, omega, wheel_speed, wheel_h)
         return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in torque),
@@ -251,10 +255,16 @@ class FlightSoftware:
         else:
             q = np.array([0.0, 0.0, 0.0, 1.0])
         self._q_est = q / np.linalg.norm(q)
+        self._attitude_history.append((req.obt_s, self._q_est))
         return self._q_est, omega
 
+    def _attitude_at(self, obt_s: float) -> np.ndarray:
+        """The attitude estimate of the control period nearest ``obt_s`` (a frame's exposure time)."""
+        return min(self._attitude_history, key=lambda e: abs(e[0] - obt_s))[1]
+
     # -- imaging -------------------------------------------------------------------------------------------
-    def _image(self, frame: np.ndarray, req: StepRequest, q: np.ndarray) -> np.ndarray | None:
+    def _image(self, frame: np.ndarray, req: StepRequest) -> tuple[float, np.ndarray] | None:
+        """Process a frame; return (exposure OBT s, measured inertial LOS of Dimorphos), or None if not seen."""
         det = process_frame(frame, self.cfg.imaging, self.detections)
         self.detections = det
         meta = req.frame
@@ -266,14 +276,14 @@ class FlightSoftware:
             return None
         d_col, d_row = det.dimorphos_offset_px
         los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
-        los_i = Rotation.from_quat(q).apply(los_b)
+        los_i = Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
         self._last_seen_obt = obt
         if self.recognizer is not None:
             self.recognizer.add_measurement(obt, los_i)
         self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=det.dimorphos.centroid_col_row,
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
-        return los_i
+        return obt, los_i
 
     def _frame_request(self, obt: float) -> FrameRequest | None:
         if not self.imaging or self._next_frame_obt is None or obt < self._next_frame_obt:
@@ -325,22 +335,36 @@ class FlightSoftware:
         self._mode_event(m.handle(Tick(), obt), obt)
 
     # -- control -------------------------------------------------------------------------------------------
+    def pointing_trajectory(self) -> NominalTrajectory | None:
+        """The trajectory the camera follows: the recognised one, refreshed with every measurement, in
+        AUTONOMOUS_TRACKING; the ground's nominal otherwise."""
+        rec = self.recognizer
+        if self.modes.mode != Mode.AUTONOMOUS_TRACKING or rec is None \
+                or rec.measurement_count < self.cfg.min_recognition_measurements:
+            return self.trajectory
+        if self.autonomous_trajectory is None or self._autonomous_count != rec.measurement_count:
+            self._autonomous_count = rec.measurement_count
+            self.autonomous_trajectory = rec.continuous_trajectory() if self.cfg.autonomy_estimate == "continuous" \
+                else rec.best_trajectory()
+        return self.autonomous_trajectory
+
     def _control(self, obt: float, dt: float, q: np.ndarray, omega: np.ndarray, wheel_h: np.ndarray,
-                 los_i: np.ndarray | None) -> np.ndarray:
-        if self.modes.mode in POINTING_MODES and self.trajectory is not None:
-            meas = los_i if self.modes.mode in TRACKING_MODES else None
-            ref = self.tracking.update(obt, dt, self.trajectory, meas)
+                 seen: tuple[float, np.ndarray] | None) -> np.ndarray:
+        los_i = None if seen is None else seen[1]
+        traj = self.pointing_trajectory()
+        if self.modes.mode in POINTING_MODES and traj is not None:
+            meas = seen if self.modes.mode in TRACKING_MODES else None
+            ref = self.tracking.update(obt, dt, traj, None if meas is None else meas[1],
+                                       measured_obt_s=None if meas is None else min(meas[0], obt))
         else:  # hold the current attitude, rate to zero
             if self.last_reference is None or self.modes.mode not in (Mode.STANDBY, Mode.SAFE):
                 self.tracking.reset()
             ref = Reference(q_des=q if self.last_reference is None else self.last_reference.q_des,
                             omega_des_body=np.zeros(3), alpha_des_body=np.zeros(3))
         self.last_reference = ref
-        b = Rotation.from_quat(ref.q_des).apply(np.asarray(self.cfg.tracking.boresight_body, dtype=float))
         boresight_now = Rotation.from_quat(q).apply(np.asarray(self.cfg.tracking.boresight_body, dtype=float))
         if los_i is not None:
             self.pointing_error_est_rad = float(np.arccos(np.clip(boresight_now @ los_i, -1, 1)))
-        del b
         body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)
         tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms)
         saturated = bool(np.any(np.abs(wheel_h) >= self.max_momentum_nms))
