@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 import pytest
@@ -152,6 +153,7 @@ def test_pointing_attitude_puts_boresight_on_los_with_x_toward_the_reference(los
         np.testing.assert_allclose(att.apply([1.0, 0.0, 0.0]), across / np.linalg.norm(across), atol=1e-9)
 
 
+@lru_cache(maxsize=1)  # three tests read the same run; none changes it
 def frame_run(seed: int = 3) -> tuple[Universe, TruthRecord, np.ndarray]:
     """A universe near C/A-18 s (Dimorphos ~24 px across, drifting through the field with no torque) that took
     one frame after 0.5 s; returns it (still at the frame's time), the frame's truth record and its pixels."""
