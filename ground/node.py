@@ -23,6 +23,7 @@ from flyby.messages import GroundReply, GroundStep, OperatorCommand, TruthRecord
 from flyby.runtime import Attachment, PeerStopped, RelayedFailure
 from flyby.scenario import Scenario
 from ground.archive import Archive
+from ground.report import ReportError, build_report
 from ground.segment import GroundSegment
 from timeline.model import Timeline
 
@@ -159,4 +160,13 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
     (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
     for line in lines:
         log.info("%s", line)
+    if (out / "scenario.yaml").exists():
+        try:
+            report, figures = build_report(out)
+        except ReportError as exc:
+            log.error("no report: %s", exc)
+        else:
+            lines.append(f"requirements: {'all PASS' if figures.all_pass else 'FAILED (see report)'}; report {report}")
+            (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
+            log.info("report written: %s", report)
     return code
