@@ -142,7 +142,7 @@ def test_flyby_render_writes_pngs_and_a_gif(tmp_path: Path, capsys: pytest.Captu
     path = write_scenario(tmp_path, "name: short\nseed: 2\nuniverse:\n  start_s: 90.0\n  end_s: 130.0\n")
     out = tmp_path / "frames"
     code = flyby_main(["render", str(path), "--out", str(out), "--from", "100", "--to", "102", "--every", "1",
-                       "--size", "128"])
+                       "--size", "128", "--gif-size", "64"])
     assert code == 0
     pngs = sorted(out.glob("frame_*.png"))
     assert [p.name for p in pngs] == ["frame_00000.png", "frame_00001.png", "frame_00002.png"]
@@ -150,7 +150,7 @@ def test_flyby_render_writes_pngs_and_a_gif(tmp_path: Path, capsys: pytest.Captu
         with Image.open(p) as im:
             assert im.size == (128, 128) and im.mode == "L"
     with Image.open(out / "render.gif") as gif:
-        assert gif.n_frames == 3
+        assert gif.n_frames == 3 and gif.size == (64, 64)
     said = capsys.readouterr()
     assert "3 frames" in said.out and str(out) in said.out
     assert "frame 3/3" in said.err
