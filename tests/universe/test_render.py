@@ -114,7 +114,7 @@ def test_frames_are_centred_on_dimorphos_and_deterministic() -> None:
     assert a.dimorphos_px == pytest.approx((c, c), abs=1e-6)
     assert a.pixels.dtype == np.uint16 and a.pixels.shape == (1024, 1024)
     np.testing.assert_array_equal(a.pixels, b.pixels)
-    # Dimorphos (~15 px across at 550 km) is lit above the dark level where the boresight is
+    # Dimorphos (~10 px across at 340 km) is lit above the dark level where the boresight is
     centre = a.pixels[508:516, 508:516].astype(float)
     assert centre.max() > scenario.universe.camera.dark_offset_dn + 200
 
