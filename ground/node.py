@@ -83,7 +83,8 @@ def summary_lines(scenario: Scenario, segment: GroundSegment, truth: list[TruthR
     return lines
 
 
-def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthLog, scenario: Scenario) -> None:
+def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthLog, scenario: Scenario,
+        tc_log: IO[bytes] | None = None) -> None:
     """Answer ground steps until the run ends."""
     last: tuple[int, GroundReply] | None = None
     last_status = -1.0
@@ -112,6 +113,9 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
             truth.add(rec)
         for line in lines:
             log.info("%s", line)
+        if tc_log is not None and uplink:
+            tc_log.write(b"".join(uplink))  # every telecommand radiated, as sent, for later analysis
+            tc_log.flush()
         reply = GroundReply(step=msg.step, uplink=tuple(uplink))
         bus.publish(bus.keys.ground_reply, reply)
         last = (msg.step, reply)
@@ -137,7 +141,8 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
         bus.watch_peers()
         bus.declare_alive()
         try:
-            run(bus, segment, archive, truth, scenario)
+            with open(out / "tc.bin", "wb") as tc_log:
+                run(bus, segment, archive, truth, scenario, tc_log)
         except NodeFailure as failure:
             log.error("%s", failure)
             if not isinstance(failure, RelayedFailure):
@@ -158,6 +163,10 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
     if code != EXIT_OK:
         lines.insert(0, "run ended early: the figures cover only what was received")
     (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
+    c = segment.correlation
+    (out / "correlation.json").write_text(json.dumps({
+        "offset_s": c.offset_s, "drift": c.drift, "offset_sigma_s": c.offset_sigma_s,
+        "drift_sigma_ppm": c.drift_sigma_ppm, "n_reports": c.n_reports, "residual_rms_s": c.residual_rms_s}, indent=2))
     for line in lines:
         log.info("%s", line)
     if (out / "scenario.yaml").exists():

@@ -319,6 +319,16 @@ class FaultConfig(Frozen):
         return v
 
 
+class ApproachHistoryConfig(Frozen):
+    """Time reports the spacecraft sent during the approach before the run (ground's correlation history)."""
+
+    duration_s: float = Field(
+        0.0, ge=0, description="length of the approach before the run start covered by time reports, s (0: none; "
+        "the paper's approach is about ten days, 864000 s)"
+    )
+    report_period_s: float = Field(600.0, gt=0, description="time between two time reports of the history, true s")
+
+
 class UniverseConfig(Frozen):
     """Everything the universe simulates."""
 
@@ -334,6 +344,7 @@ class UniverseConfig(Frozen):
     plume: PlumeConfig = PlumeConfig()
     oscillator: OscillatorConfig = OscillatorConfig()
     faults: list[FaultConfig] = Field(default_factory=list, description="faults to inject")
+    approach_history: ApproachHistoryConfig = ApproachHistoryConfig()
     save_frames_every: int = Field(
         1, ge=0, description="write every n-th camera frame as an 8-bit 512x512 PNG into the run folder (0: none)"
     )

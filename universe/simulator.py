@@ -12,6 +12,7 @@ from collections.abc import Iterator
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from flyby import pus
 from flyby.messages import (
     FrameMeta,
     GroundReply,
@@ -106,8 +107,30 @@ class Universe:
         self._truth: list[TruthRecord] = []
         self._log: list[str] = []
         self._boresight = np.asarray(u.camera.boresight_body, dtype=float)
+        self._history = self._approach_history(scenario)
         self._obt_s = self.oscillator.obt_s(self.t_s)
         self.shapes = body_shapes(scenario.seed)
+
+    def _approach_history(self, scenario: Scenario) -> list[tuple[float, bytes]]:
+        """The service 9 time reports of the approach before the run, with the true time each reached ground.
+
+        They stand for the telemetry of the days before the flyby (the OBSW of this run starts at ``start_s``), so
+        they are read from the same oscillator and sent through the same link model; their sequence counts end
+        just before the run's first packet so ground sees one gapless stream.
+        """
+        h = self.cfg.approach_history
+        if h.duration_s <= 0:
+            return []
+        n = int(h.duration_s // h.report_period_s)
+        times = [self.t_s - (n - k) * h.report_period_s for k in range(n)]
+        link = scenario.ground.link
+        out = []
+        for k, t in enumerate(times):
+            obt = self.oscillator.obt_s(t)
+            seq = (k - n) % pus.SEQ_COUNT_MODULO
+            raw = pus.encode_tm(pus.TimeReport(obt_s=obt), scenario.obsw.apid, seq, obt, seq % 0x10000)
+            out.append((t + len(raw) * 8.0 / link.downlink_rate_bps + link.one_way_light_time_s, raw))
+        return out
 
     def _initial_state(self) -> AttitudeState:
         sc = self.cfg.spacecraft
@@ -210,6 +233,9 @@ class Universe:
     def ground_step(self) -> GroundStep:
         """The telemetry that reached the antenna and the truth recorded since the last ground step."""
         arrived = self.link.downlink.arrived_timed(self.t_s)
+        if self._history:  # the approach's time reports come first, in the order they arrived
+            arrived = [(t, p) for t, p in self._history if t <= self.t_s] + arrived
+            self._history = [(t, p) for t, p in self._history if t > self.t_s]
         msg = GroundStep(step=self._ground_step, utc_s=self.t_s, downlink=tuple(p for _, p in arrived),
                          downlink_utc_s=tuple(t for t, _ in arrived), truth=tuple(self._truth))
         self._truth = []
