@@ -168,8 +168,8 @@ class FlightSoftware:
         except CommandRejected as rej:
             self._log.append(f"OBT {obt:.2f} s: {type(cmd).__name__} refused: {rej.text}")
             self._verify(rid, pus.Stage.COMPLETION, obt, 0x0100 + int(rej.reason), rej.text)
-            self._event(pus.CommandRejectedEvent(request_id=rid, failure_code=0x0100 + int(rej.reason),
-                                                 reason=rej.text[:255]), obt, f"command rejected: {rej.text}")
+            self._event(pus.CommandRejectedEvent(request_id=rid, failure_code=0x0100 + int(rej.reason)), obt,
+                        f"command rejected: {rej.text}")
             return
         self._verify(rid, pus.Stage.COMPLETION, obt)
 
