@@ -1,0 +1,232 @@
+"""The flight software core: PUS verification and rejection reports, schedule release, mode events, frame
+geometry at exposure time, and a short image-in-the-loop flyby through C/A against the simulation truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize_scalar
+from scipy.spatial.transform import Rotation
+
+from flyby import pus
+from flyby.messages import FrameMeta, SensorData, StepRequest
+from flyby.scenario import scenario_from_dict
+from obsw.config import ObswConfig
+from obsw.software import FlightSoftware
+from timeline.parse import timeline_from_data
+from universe.config import CameraConfig, SpacecraftConfig
+from universe.geometry import FlybyGeometry
+
+APID = ObswConfig().apid
+OBT0 = 1000.0
+DT = ObswConfig().control_period_s
+Q0 = (0.0, 0.0, 0.0, 1.0)
+
+
+def _fsw() -> FlightSoftware:
+    return FlightSoftware(ObswConfig(), SpacecraftConfig(), CameraConfig())
+
+
+def _request(step: int, obt_s: float, uplink: tuple[bytes, ...] = (), q: tuple | None = Q0,
+             gyro: tuple[float, float, float] = (0.0, 0.0, 0.0), wheels: tuple[float, ...] = (0.0, 0.0, 0.0),
+             frame: FrameMeta | None = None) -> StepRequest:
+    return StepRequest(step=step, obt_s=obt_s, uplink=uplink, frame=frame,
+                       sensors=SensorData(star_tracker_q=q, gyro_rad_s=gyro, wheel_speed_rad_s=wheels))
+
+
+def _tm(reply_downlink: tuple[bytes, ...]) -> list[tuple[pus.TmHeader, pus.TmReport]]:
+    return [pus.decode_tm(p) for p in reply_downlink]
+
+
+def _of(tm: list[tuple[pus.TmHeader, pus.TmReport]], kind: type) -> list:
+    return [r for _, r in tm if isinstance(r, kind)]
+
+
+def test_accepted_command_is_verified_at_acceptance_then_completion() -> None:
+    """A valid TC gets a successful acceptance report, its execution (a ping reply), then a successful completion."""
+    fsw = _fsw()
+    tc = pus.encode_tc(pus.Ping(), APID, 42)
+    reply = fsw.step(_request(0, OBT0, (tc,)), None)
+    kinds = [(type(r).__name__, getattr(r, "stage", None)) for _, r in _tm(reply.downlink)
+             if isinstance(r, pus.Verification | pus.PingReply)]
+    assert kinds == [("Verification", pus.Stage.ACCEPTANCE), ("PingReply", None),
+                     ("Verification", pus.Stage.COMPLETION)]
+    for v in _of(_tm(reply.downlink), pus.Verification):
+        assert v.success and v.request_id == pus.RequestId(apid=APID, seq_count=42)
+
+
+def test_corrupted_command_gets_an_acceptance_failure_and_the_next_is_still_served() -> None:
+    """A TC with a broken CRC is answered by a BAD_CRC acceptance failure naming it; the TC after it executes."""
+    fsw = _fsw()
+    bad = bytearray(pus.encode_tc(pus.Ping(), APID, 7))
+    bad[-1] ^= 0xFF
+    reply = fsw.step(_request(0, OBT0, (bytes(bad), pus.encode_tc(pus.Ping(), APID, 8))), None)
+    tm = _tm(reply.downlink)
+    failures = [v for v in _of(tm, pus.Verification) if not v.success]
+    assert len(failures) == 1
+    assert failures[0].stage == pus.Stage.ACCEPTANCE
+    assert failures[0].failure_code == pus.FailureCode.BAD_CRC
+    assert failures[0].request_id == pus.RequestId(apid=APID, seq_count=7)
+    assert len(_of(tm, pus.PingReply)) == 1
+    assert {v.request_id.seq_count for v in _of(tm, pus.Verification) if v.success} == {8}
+
+
+def test_illegal_mode_command_is_refused_with_a_completion_failure_and_an_event() -> None:
+    """AUTONOMOUS_TRACKING commanded from STANDBY: accepted, then refused (failure + rejection event), mode kept."""
+    fsw = _fsw()
+    tc = pus.encode_tc(pus.SetMode(mode=pus.Mode.AUTONOMOUS_TRACKING), APID, 3)
+    reply = fsw.step(_request(0, OBT0, (tc,)), None)
+    tm = _tm(reply.downlink)
+    ver = _of(tm, pus.Verification)
+    assert [(v.stage, v.success) for v in ver] == [(pus.Stage.ACCEPTANCE, True), (pus.Stage.COMPLETION, False)]
+    code = 0x0100 + 10  # RejectReason.ILLEGAL_TRANSITION in the OBSW's execution-failure range
+    assert ver[1].failure_code == code and "AUTONOMOUS_TRACKING" in ver[1].reason
+    events = _of(tm, pus.CommandRejectedEvent)
+    assert len(events) == 1 and events[0].failure_code == code and events[0].request_id == ver[1].request_id
+    assert not _of(tm, pus.ModeChangedEvent)
+    assert fsw.mode_name == "STANDBY"
+
+
+def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
+    """A SetMode(ACQUISITION) scheduled at OBT0+1.55 s executes at the first period at or after its tag (not
+    before), reports its completion and the mode change stamped with that OBT, and starts imaging."""
+    fsw = _fsw()
+    tag = OBT0 + 1.55
+    inner = pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 11)
+    insert = pus.InsertActivities(activities=(pus.ScheduledActivity(release_obt_s=tag, tc_packet=inner),))
+    fsw.step(_request(0, OBT0, (pus.encode_tc(insert, APID, 10),)), None)
+    released_at = None
+    for k in range(1, 30):
+        obt = OBT0 + k * DT
+        reply = fsw.step(_request(k, obt), None)
+        tm = _tm(reply.downlink)
+        changes = [(h, r) for h, r in tm if isinstance(r, pus.ModeChangedEvent)]
+        if obt < tag - 1e-9:
+            assert not changes and fsw.mode_name == "STANDBY"
+            continue
+        if released_at is None:
+            released_at = obt
+            assert len(changes) == 1
+            header, ev = changes[0]
+            assert (ev.from_mode, ev.to_mode) == (pus.Mode.STANDBY, pus.Mode.ACQUISITION)
+            assert ev.cause.startswith("COMMANDED")
+            assert abs(header.obt_s - obt) < 2**-16
+            done = _of(tm, pus.Verification)
+            assert [(v.stage, v.success, v.request_id.seq_count) for v in done] == [(pus.Stage.COMPLETION, True, 11)]
+            assert reply.frame_request is not None
+    assert released_at is not None and tag <= released_at < tag + DT
+    assert fsw.mode_name == "ACQUISITION"
+
+
+def test_wheel_saturation_is_reported_and_sends_the_spacecraft_to_safe() -> None:
+    """A wheel at its momentum limit raises one saturation event naming it and a mode change to SAFE."""
+    fsw = _fsw()
+    w = SpacecraftConfig().wheels
+    speed = 1.01 * w.max_momentum_nms / w.inertia_kgm2
+    reply = fsw.step(_request(0, OBT0, wheels=(0.0, -speed, 0.0)), None)
+    tm = _tm(reply.downlink)
+    sat = _of(tm, pus.WheelSaturationEvent)
+    assert len(sat) == 1 and sat[0].wheel == 1 and sat[0].momentum_nms < -w.max_momentum_nms
+    changes = _of(tm, pus.ModeChangedEvent)
+    assert [(c.from_mode, c.to_mode) for c in changes] == [(pus.Mode.STANDBY, pus.Mode.SAFE)]
+    again = fsw.step(_request(1, OBT0 + DT, wheels=(0.0, -speed, 0.0)), None)
+    assert not _of(_tm(again.downlink), pus.WheelSaturationEvent)  # reported once, on entering saturation
+
+
+def test_gyro_propagation_over_an_outage_advances_one_control_period_despite_a_clock_jump() -> None:
+    """Star tracker out and OBT jumping 100 s: the attitude is propagated by the gyro over one control period."""
+    fsw = _fsw()
+    q0 = Rotation.from_rotvec([0.1, -0.2, 0.3])
+    omega = np.array([0.01, 0.02, -0.03])
+    fsw.step(_request(0, OBT0, q=tuple(q0.as_quat())), None)
+    reply = fsw.step(_request(1, OBT0 + 100.0, q=None, gyro=tuple(omega)), None)
+    hk = _of(_tm(reply.downlink), pus.Housekeeping)
+    assert len(hk) == 1
+    expected = q0 * Rotation.from_rotvec(omega * DT)
+    got = Rotation.from_quat(np.asarray(hk[0].q, dtype=float))
+    assert (got.inv() * expected).magnitude() < 1e-6
+    assert (got.inv() * q0 * Rotation.from_rotvec(omega * 100.0)).magnitude() > 0.1
+
+
+def _two_bodies_frame(did_col_row: tuple[int, int], dim_col_row: tuple[int, int]) -> np.ndarray:
+    """A 1024x1024 12-bit frame: a flat background and two uniform squares, 20 and 4 binned pixels on a side,
+    starting at the given binned (col, row); their binned centroids are start + (side - 1) / 2."""
+    frame = np.full((1024, 1024), 200, dtype=np.uint16)
+    for (c, r), side in ((did_col_row, 20), (dim_col_row, 4)):
+        frame[2 * r : 2 * (r + side), 2 * c : 2 * (c + side)] = 3000
+    return frame
+
+
+def test_frame_line_of_sight_uses_the_attitude_at_exposure() -> None:
+    """A frame exposed one period before it is processed is turned into inertial with the attitude of its
+    exposure: the reported LOS is R(q_exposure) times the pinhole ray of Dimorphos's centroid."""
+    fsw = _fsw()
+    q_exp = Rotation.from_rotvec([0.2, 0.1, -0.4])
+    q_now = q_exp * Rotation.from_rotvec([0.0, 0.02, 0.0])  # 1.1 deg later
+    fsw.step(_request(0, OBT0, q=tuple(q_exp.as_quat())), None)
+    frame = _two_bodies_frame((300, 240), (330, 220))
+    meta = FrameMeta(frame_id=0, obt_s=OBT0, width=1024, height=1024, bit_depth=12, exposure_s=0.01)
+    reply = fsw.step(_request(1, OBT0 + DT, q=tuple(q_now.as_quat()), frame=meta), frame)
+    nav = _of(_tm(reply.downlink), pus.NavigationReport)
+    assert len(nav) == 1 and nav[0].dimorphos_col_row == pytest.approx((331.5, 221.5))
+    f_px = 256.0 / np.tan(np.radians(CameraConfig().fov_deg / 2))
+    ray = np.array([331.5 - 255.5, 221.5 - 255.5, f_px])
+    expected = q_exp.apply(ray / np.linalg.norm(ray))
+    assert np.asarray(nav[0].los_inertial) == pytest.approx(expected, abs=1e-6)
+
+
+# --- a short flyby in the loop ------------------------------------------------------------------------------------
+
+SHORT_FLYBY = {
+    "name": "short-closed-loop",
+    "seed": 3,
+    "universe": {
+        "start_s": 110.0,  # C/A-58 s ... C/A+12 s; the timeline is accepted from ~6 s after the start
+        "end_s": 180.0,
+        # ground's nominal off by -4 s and +2 km: the camera must find the true C/A on board
+        "uncertainty": {"ca_time_offset_sigma": -0.4, "ca_distance_offset_sigma": 0.4},
+        "save_frames_every": 0,
+    },
+    "ground": {"link": {"one_way_light_time_s": 1.0}},
+}
+SHORT_TIMELINE = {
+    "description": "acquisition at C/A-44 s, frames every 0.5 s",
+    "commands": [
+        {"time": "CA-44s", "command": "set_mode", "args": {"mode": "ACQUISITION"}},
+        {"time": "+0s", "command": "start_imaging", "args": {"period_s": 0.5}},
+    ],
+}
+
+
+def test_short_flyby_in_the_loop_holds_dimorphos_through_ca() -> None:
+    """Acquisition, tracking and autonomous tracking from the on-board C/A-30 s through C/A (7.4 deg/s): Dimorphos
+    in every frame after acquisition, within 0.2 deg once autonomous, and the recognised C/A within 0.1 s and
+    0.3 km of the spacecraft-Dimorphos truth found by minimising the true distance."""
+    from flyby.inprocess import run_in_process
+
+    scenario = scenario_from_dict(SHORT_FLYBY)
+    run = run_in_process(scenario, timeline_from_data(SHORT_TIMELINE))
+    packets = [(p.header, p.report) for p in run.received if p.report is not None]
+    changes = [(h.obt_s, r) for h, r in packets if isinstance(r, pus.ModeChangedEvent)]
+    assert [(r.to_mode, r.cause.split(":")[0]) for _, r in changes] == [
+        (pus.Mode.ACQUISITION, "COMMANDED"), (pus.Mode.NOMINAL_TRACKING, "TARGET_ACQUIRED"),
+        (pus.Mode.AUTONOMOUS_TRACKING, "AUTONOMY_TIME")]
+    tracked_from = changes[1][0]
+    u = scenario.universe
+    g = FlybyGeometry(u.flyby, u.bodies)
+    ca = minimize_scalar(lambda t: float(np.linalg.norm(g.spacecraft_position_m(t) - g.dimorphos_position_m(t))),
+                         bounds=(u.flyby.ca_time_s - 20, u.flyby.ca_time_s + 20), method="bounded",
+                         options={"xatol": 1e-6})
+    truth = run.truth
+    ca_obt = float(np.interp(ca.x, [x.t_s for x in truth], [x.obt_s for x in truth]))
+    frames = [x for x in truth if x.frame_id is not None and x.obt_s >= tracked_from]
+    assert len(frames) > 80
+    assert all(x.target_in_fov for x in frames)
+    assert changes[2][0] == pytest.approx(ca_obt - 30.0, abs=0.2)  # C/A-30 s judged on the on-board estimate
+    autonomous = [x for x in truth if x.obt_s >= changes[2][0]]
+    assert max(x.pointing_error_rad for x in autonomous) < np.radians(0.2)
+    assert max(np.linalg.norm(x.omega_rad_s) for x in truth) > np.radians(7.0)
+    estimates = [r for h, r in packets if isinstance(r, pus.EstimateReport) and h.obt_s <= ca_obt]
+    last = estimates[-1]
+    assert abs(last.continuous_ca_obt_s - ca_obt) < 0.1
+    assert abs(last.continuous_ca_distance_km - ca.fun / 1e3) < 0.3
