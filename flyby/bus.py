@@ -30,6 +30,8 @@ class Keys:
         self.status_all = f"{self.root}/status/*"
         self.alive_all = f"{self.root}/alive/*"
         self.operator = f"{self.root}/ground/operator"
+        self.operator_reply = f"{self.root}/ground/operator/reply"
+        self.tm_lines = f"{self.root}/ground/tm"
 
     def status(self, node: str) -> str:
         """Key on which ``node`` publishes its progress."""

@@ -115,6 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("run_dir", type=Path)
     rep.set_defaults(func=cmd_report)
     add_tm_arguments(sub.add_parser("tm", help="list, print or export (CSV) archived telemetry parameters of a run"))
+    from flyby.console import add_parser as add_ground_console
+
+    add_ground_console(sub)
     return p
 
 

@@ -98,6 +98,8 @@ def launch(config: Path, scenario: Scenario, out: Path | None = None, realtime: 
     ports = {n: free_tcp_port() for n in NODES}
     cmds = node_commands(config, run_id, folder, ports, realtime, log_level)
     print(f"run folder: {folder}", file=stream)
+    print(f"run id {run_id}; operator console: flyby ground --connect tcp/127.0.0.1:{ports['ground']} "
+          f"--run-id {run_id} --watch", file=stream)
     watch = Watch()
     clock = WallClock()
     conf = session_config(connect=[f"tcp/127.0.0.1:{ports[n]}" for n in NODES],

@@ -130,9 +130,27 @@ class Shutdown(Message):
 class OperatorCommand(Message):
     """An operator's request to the ground node (``flyby ground``)."""
 
+    request: int = Field(ge=0, description="the operator's request number, echoed in the reply")
     action: Literal["send", "upload_trajectory", "upload_timeline"]
-    payload: bytes = Field(description="a telecommand packet, or a trajectory/timeline file's content")
-    name: str = ""
+    payload: bytes = Field(description="YAML: a command {command, args}, a trajectory, or a timeline file's content")
+    name: str = Field("", description="file name of an upload (its suffix tells YAML from CSV)")
+
+
+class OperatorReply(Message):
+    """Ground's answer to an operator request: accepted for uplink, or refused with the reason."""
+
+    request: int = Field(ge=0)
+    ok: bool
+    text: str
+
+
+class TmLine(Message):
+    """One received telemetry packet of interest (housekeeping, event, verification), as a line for people."""
+
+    utc_s: float
+    obt_s: float
+    kind: str
+    text: str
 
 
 M = TypeVar("M", bound=Message)

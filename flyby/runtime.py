@@ -137,7 +137,7 @@ class Attachment:
             if left <= 0:
                 missing = sorted(wanted - self._alive)[0]
                 raise NodeFailure(missing, None, f"did not come up within {timeout_s:g} s")
-            self._take(left)
+            self._take(left, return_on_up=True)
 
     def receive(self, timeout_s: float) -> Received | None:
         """Next message, or None after ``timeout_s``; raise NodeFailure if a peer died or failed."""
@@ -176,7 +176,7 @@ class Attachment:
             elif what == "down":
                 self._alive.discard(item)
 
-    def _take(self, timeout_s: float) -> Received | None:
+    def _take(self, timeout_s: float, return_on_up: bool = False) -> Received | None:
         deadline = self.clock.now() + timeout_s
         while True:
             left = deadline - self.clock.now()
@@ -188,6 +188,8 @@ class Attachment:
                 return None
             if what == "up":
                 self._alive.add(item)
+                if return_on_up:
+                    return None
             elif what == "down":
                 self._alive.discard(item)
                 if item != self.node:

@@ -19,12 +19,14 @@ import zenoh
 from flyby.bus import Keys
 from flyby.clock import WallClock
 from flyby.errors import NodeFailure
-from flyby.messages import GroundReply, GroundStep, OperatorCommand, TruthRecord
+from flyby import pus
+from flyby.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
 from flyby.runtime import Attachment, PeerStopped, RelayedFailure
 from flyby.scenario import Scenario
 from ground.archive import Archive
 from ground.report import ReportError, build_report
-from ground.segment import GroundSegment
+from ground.operator import OperatorError, command_request, timeline_request, trajectory_request
+from ground.segment import GroundSegment, ReceivedPacket
 from timeline.model import Timeline
 
 log = logging.getLogger("ground")
@@ -83,10 +85,55 @@ def summary_lines(scenario: Scenario, segment: GroundSegment, truth: list[TruthR
     return lines
 
 
+def operator_request(segment: GroundSegment, msg: OperatorCommand, utc_s: float | None) -> OperatorReply:
+    """Queue the telecommands of an operator request, or refuse it with the reason."""
+    try:
+        if msg.action == "send":
+            cmds = [command_request(msg.payload)]
+            notes: list[str] = []
+        elif msg.action == "upload_trajectory":
+            cmds, notes = [trajectory_request(msg.payload, segment)], []
+        else:
+            if utc_s is None:
+                raise OperatorError("the run has not started: no time to convert the timeline at")
+            insert, notes = timeline_request(msg.payload, msg.name, segment, utc_s)
+            cmds = [insert]
+    except OperatorError as exc:
+        return OperatorReply(request=msg.request, ok=False, text=str(exc))
+    for c in cmds:
+        segment.queue(c)
+    what = ", ".join(type(c).__name__ for c in cmds)
+    return OperatorReply(request=msg.request, ok=True,
+                         text=f"queued {what} for the next uplink" + ("; " + "; ".join(notes) if notes else ""))
+
+
+def tm_line(p: ReceivedPacket) -> TmLine | None:
+    """A line for people watching the run, for housekeeping, events and verification reports."""
+    r, h = p.report, p.header
+    if h is None or r is None:
+        return None
+    if isinstance(r, pus.Housekeeping):
+        rate = float(np.degrees(np.linalg.norm(r.rate_rad_s)))
+        err = "-" if r.pointing_error_rad is None else f"{np.degrees(r.pointing_error_rad):.3f} deg"
+        best = "-" if r.best_ca_obt_s is None else f"C/A OBT {r.best_ca_obt_s:.2f} s at {r.best_ca_distance_km:.2f} km"
+        text = f"{r.mode.name:<20} rate {rate:6.2f} deg/s  pointing error {err}  best {best}"
+        return TmLine(utc_s=p.receipt_utc_s, obt_s=h.obt_s, kind="HK", text=text)
+    if isinstance(r, pus.EventReport):
+        fields = ", ".join(f"{k}={v}" for k, v in r.model_dump().items() if k != "severity")
+        return TmLine(utc_s=p.receipt_utc_s, obt_s=h.obt_s, kind=f"EVENT {r.severity.name}",
+                      text=f"{type(r).__name__}: {fields}")
+    if isinstance(r, pus.Verification):
+        status = "ok" if r.success else f"FAILED 0x{r.failure_code:04X} {r.reason}"
+        return TmLine(utc_s=p.receipt_utc_s, obt_s=h.obt_s, kind="TC",
+                      text=f"TC {r.request_id.seq_count} {r.stage.name.lower()} {status}")
+    return None
+
+
 def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthLog, scenario: Scenario,
         tc_log: IO[bytes] | None = None) -> None:
     """Answer ground steps until the run ends."""
     last: tuple[int, GroundReply] | None = None
+    answered: dict[int, OperatorReply] = {}
     last_status = -1.0
     wait = scenario.bus.startup_timeout_s + scenario.bus.reply_timeout_s
     while True:
@@ -95,7 +142,11 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
             raise NodeFailure("universe", bus.sim_time_s, f"stopped sending ground steps (nothing for {wait:g} s)")
         msg = got.msg
         if isinstance(msg, OperatorCommand):
-            log.info("operator command %s (%s)", msg.action, msg.name)
+            reply = answered.get(msg.request)
+            if reply is None:  # a console resends until answered: act on each request once
+                reply = answered[msg.request] = operator_request(segment, msg, bus.sim_time_s)
+                log.info("operator request %d (%s %s): %s", msg.request, msg.action, msg.name, reply.text)
+            bus.publish(bus.keys.operator_reply, reply)
             continue
         if not isinstance(msg, GroundStep):
             continue
@@ -108,6 +159,9 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         uplink, received, lines = segment.step(msg.utc_s, msg.downlink, msg.downlink_utc_s)
         for p in received:
             archive.store(p.raw, p.receipt_utc_s)
+            line = tm_line(p)
+            if line is not None:
+                bus.publish(bus.keys.tm_lines, line)
         archive.flush()  # at most one ground step of telemetry is ever unwritten
         for rec in msg.truth:
             truth.add(rec)

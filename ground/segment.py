@@ -80,6 +80,11 @@ class GroundSegment:
             sigma_ca_distance_km=unc.ca_distance_sigma_km,
         )
 
+    @property
+    def queued(self) -> int:
+        """Telecommands waiting for the next step."""
+        return len(self._queue)
+
     def queue(self, cmd: pus.TcCommand) -> None:
         """Send ``cmd`` at the next step (operator commands, timeline uploads)."""
         self._queue.append(cmd)
@@ -115,22 +120,23 @@ class GroundSegment:
         self._queue = []
         return uplink, received, log
 
-    def timeline_upload(self, utc_s: float, nominal: pus.UploadNominalTrajectory,
-                        log: list[str]) -> pus.InsertActivities | None:
+    def timeline_upload(self, utc_s: float, nominal: pus.UploadNominalTrajectory, log: list[str],
+                        timeline: Timeline | None = None) -> pus.InsertActivities | None:
         """The service 11 insert of the timeline, tags in OBT by the current correlation.
 
         Commands that would reach the spacecraft too late (before now + light time + margin) are refused here,
         each logged with its row, and the rest is uploaded; None if nothing is left.
         """
-        assert self.timeline is not None
+        timeline = timeline or self.timeline
+        assert timeline is not None
         source = self.cfg.timeline_file or "<timeline>"
         not_before = self.correlation.to_obt(utc_s + self.cfg.link.one_way_light_time_s + self.cfg.upload_margin_s)
         kw = dict(epoch_utc=self.scenario.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
         try:
-            resolved = resolved_commands(self.timeline, self.correlation, not_before_obt_s=not_before, **kw)
+            resolved = resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
         except TimelineError as err:
             log.extend(f"timeline command refused: {p}" for p in err.problems)
-            resolved = [r for r in resolved_commands(self.timeline, self.correlation, **kw) if r.obt_s >= not_before]
+            resolved = [r for r in resolved_commands(timeline, self.correlation, **kw) if r.obt_s >= not_before]
         if not resolved:
             return None
         return schedule_insert(resolved, self.cfg.apid, self._next_seq, nominal)

@@ -13,3 +13,31 @@ def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subpro
     """Run the ``flyby`` command as a user would, capturing its output."""
     return subprocess.run([sys.executable, "-m", "flyby.cli", *args], capture_output=True, text=True,
                           timeout=timeout, cwd=cwd)
+
+
+def start_nodes(out: Path, scenario: Path, realtime: bool = True) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
+    """Start the three nodes as separate processes (as on three hosts); return them, their endpoints, the run id."""
+    from flyby.bus import free_tcp_port
+
+    ports = {n: free_tcp_port() for n in ("universe", "obsw", "ground")}
+    ep = {n: f"tcp/127.0.0.1:{p}" for n, p in ports.items()}
+    run_id = f"test-{ports['universe']}"
+    common = ["--config", str(scenario), "--run-id", run_id, "--out", str(out)]
+    extra = {
+        "universe": ["--listen", ep["universe"], *(["--realtime"] if realtime else [])],
+        "obsw": ["--listen", ep["obsw"], "--connect", ep["universe"]],
+        "ground": ["--listen", ep["ground"], "--connect", ep["universe"], "--connect", ep["obsw"]],
+    }
+    procs = {}
+    for n, a in extra.items():
+        with open(out / f"{n}.log", "wb") as log:
+            procs[n] = subprocess.Popen([sys.executable, "-m", n, *common, *a], stdout=log, stderr=subprocess.STDOUT)
+    return procs, ep, run_id
+
+
+def stop_nodes(procs: dict[str, subprocess.Popen[bytes]]) -> None:
+    """Kill whatever is still running."""
+    for p in procs.values():
+        if p.poll() is None:
+            p.kill()
+        p.wait()

@@ -1,0 +1,184 @@
+"""``flyby ground``: an operator's console on a running ground node, or on a recorded run.
+
+Live: it joins the run's bus (``--connect`` the ground node's endpoint, ``--run-id`` as printed by ``flyby run``),
+sends one request (a command, a timeline file, a trajectory file) and prints ground's answer, and with ``--watch``
+prints the housekeeping, events and verification reports as ground receives them.
+Recorded: ``--run DIR`` prints the same lines from a run folder's archive.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import queue
+import sys
+from pathlib import Path
+
+import yaml
+import zenoh
+
+from flyby.bus import Keys, session_config
+from flyby.clock import WallClock
+from flyby.errors import DecodeError
+from flyby.messages import OperatorCommand, OperatorReply, TmLine, decode
+from flyby.runtime import Attachment
+
+EXIT_OK, EXIT_REFUSED, EXIT_USAGE, EXIT_NO_GROUND = 0, 1, 2, 3
+
+
+def _key_value(items: list[str]) -> dict[str, object]:
+    """``["mode=SAFE", "period_s=0.5"]`` as a mapping, values read as YAML scalars."""
+    out: dict[str, object] = {}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"argument {item!r} must be NAME=VALUE")
+        k, v = item.split("=", 1)
+        out[k] = yaml.safe_load(v)
+    return out
+
+
+def _print_line(line: TmLine, stream=sys.stdout) -> None:  # type: ignore[no-untyped-def]
+    print(f"UTC {line.utc_s:9.2f} s  OBT {line.obt_s:14.3f} s  {line.kind:<12} {line.text}", file=stream, flush=True)
+
+
+def replay(run_dir: Path) -> int:
+    """Print the operator lines of a recorded run, from its archive (with each packet's receipt time)."""
+    import sqlite3
+
+    from flyby import pus
+    from ground.node import tm_line
+    from ground.segment import ReceivedPacket
+
+    db_path = run_dir / "archive.sqlite"
+    if not db_path.exists():
+        print(f"{run_dir}: no archive.sqlite: not a run folder", file=sys.stderr)
+        return EXIT_USAGE
+    db = sqlite3.connect(f"file:{db_path}?mode=ro", uri=True)
+    try:
+        for receipt, raw in db.execute("SELECT receipt_utc_s, raw FROM packets WHERE error IS NULL ORDER BY id"):
+            header, report = pus.decode_tm(bytes(raw))
+            line = tm_line(ReceivedPacket(bytes(raw), receipt, header, report, None))
+            if line is not None:
+                _print_line(line)
+    except BrokenPipeError:  # the reader (head, less) has seen enough
+        pass
+    finally:
+        db.close()
+    return EXIT_OK
+
+
+def console(args: argparse.Namespace) -> int:
+    """Run the ``flyby ground`` command."""
+    if args.run is not None:
+        return replay(args.run)
+    if not args.connect:
+        print("flyby ground: give --connect ENDPOINT (the ground node's) or --run RUN_DIR", file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        request = _request(args)
+    except (OSError, ValueError) as exc:
+        print(f"flyby ground: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    keys = Keys(args.run_id)
+    inbox: queue.SimpleQueue[object] = queue.SimpleQueue()
+    with zenoh.open(session_config(connect=args.connect)) as session:
+
+        def on(kind: type) -> object:
+            def cb(sample: zenoh.Sample) -> None:
+                try:
+                    inbox.put(decode(kind, sample.payload.to_bytes())[0])
+                except DecodeError as exc:
+                    print(f"undecodable message: {exc}", file=sys.stderr)
+            return cb
+
+        subs = [session.declare_subscriber(keys.operator_reply, on(OperatorReply)),
+                session.declare_subscriber(keys.tm_lines, on(TmLine))]
+        bus = Attachment(session, keys, "operator", WallClock(), logging.getLogger("operator"))
+        bus.watch_peers()
+        try:
+            bus.wait_for_peers(["ground"], args.timeout)
+        except Exception as exc:  # noqa: BLE001 - reported to the user as is
+            print(f"flyby ground: {exc}", file=sys.stderr)
+            return EXIT_NO_GROUND
+        code = EXIT_OK
+        if request is not None:
+            reply = _wait_reply(inbox, request, bus, args.timeout, args.watch)
+            if reply is None:
+                print(f"flyby ground: no answer from ground within {args.timeout:g} s", file=sys.stderr)
+                return EXIT_NO_GROUND
+            print(("accepted: " if reply.ok else "REFUSED: ") + reply.text, flush=True)
+            code = EXIT_OK if reply.ok else EXIT_REFUSED
+        if args.watch:
+            clock = WallClock()
+            end = clock.now() + args.seconds if args.seconds else float("inf")
+            try:
+                while clock.now() < end:
+                    try:
+                        msg = inbox.get(timeout=min(0.5, max(0.0, end - clock.now())))
+                    except queue.Empty:
+                        continue
+                    if isinstance(msg, TmLine):
+                        _print_line(msg)
+            except KeyboardInterrupt:
+                pass
+        del subs
+    return code
+
+
+def _wait_reply(inbox: queue.SimpleQueue[object], request: OperatorCommand, bus: Attachment, timeout_s: float,
+                echo: bool) -> OperatorReply | None:
+    """Send the request, resending each second (a fresh session's first puts may precede its routes; ground acts
+    on each request number once), until ground answers or ``timeout_s`` passes."""
+    clock = WallClock()
+    end = clock.now() + timeout_s
+    next_send = clock.now()
+    while clock.now() < end:
+        if clock.now() >= next_send:
+            bus.publish(bus.keys.operator, request)
+            next_send = clock.now() + 1.0
+        try:
+            msg = inbox.get(timeout=max(0.0, min(next_send, end) - clock.now()))
+        except queue.Empty:
+            continue
+        if isinstance(msg, OperatorReply) and msg.request == request.request:
+            return msg
+        if echo and isinstance(msg, TmLine):
+            _print_line(msg)
+    return None
+
+
+def _request(args: argparse.Namespace) -> OperatorCommand | None:
+    """The operator request the arguments ask for, or None (watch only)."""
+    number = int(WallClock().now() * 1000) % 2**31
+    if args.send:
+        payload = yaml.safe_dump({"command": args.send[0], "args": _key_value(args.send[1:])}).encode()
+        return OperatorCommand(request=number, action="send", payload=payload, name=args.send[0])
+    if args.upload_timeline:
+        p = Path(args.upload_timeline)
+        return OperatorCommand(request=number, action="upload_timeline", payload=p.read_bytes(), name=p.name)
+    if args.upload_trajectory:
+        p = Path(args.upload_trajectory)
+        return OperatorCommand(request=number, action="upload_trajectory", payload=p.read_bytes(), name=p.name)
+    if not args.watch:
+        raise ValueError("nothing to do: give --send, --upload-timeline, --upload-trajectory or --watch")
+    return None
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Register ``flyby ground`` on the CLI's sub-parsers."""
+    g = sub.add_parser("ground", help="operator console: send commands, upload files, watch housekeeping",
+                       description=__doc__)
+    g.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                   help="the ground node's Zenoh endpoint, e.g. tcp/127.0.0.1:7449 (printed by flyby run)")
+    g.add_argument("--run-id", default="default", help="the run's identifier (printed by flyby run)")
+    g.add_argument("--run", type=Path, default=None, metavar="RUN_DIR", help="print a recorded run's lines instead")
+    what = g.add_mutually_exclusive_group()
+    what.add_argument("--send", nargs="+", metavar=("COMMAND", "NAME=VALUE"),
+                      help="one command of the timeline dictionary, e.g. --send set_mode mode=SAFE")
+    what.add_argument("--upload-timeline", metavar="FILE", help="a timeline file (YAML or CSV)")
+    what.add_argument("--upload-trajectory", metavar="FILE",
+                      help="a trajectory file: ca_time_utc or ca_time_s, ca_distance_km, optional sigmas")
+    g.add_argument("--watch", action="store_true", help="print housekeeping, events and verifications as they arrive")
+    g.add_argument("--seconds", type=float, default=0.0, help="stop watching after this long (0: until Ctrl-C)")
+    g.add_argument("--timeout", type=float, default=15.0, help="longest wait for the ground node, s")
+    g.set_defaults(func=console)

@@ -1,0 +1,109 @@
+"""Operator requests to a running ground segment (``flyby ground``): a single command, a timeline, a trajectory.
+
+Pure: each request becomes the telecommands ground will radiate at its next step, or an ``OperatorError``
+naming what was wrong, so nothing reaches the spacecraft that ground itself would refuse.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+from pydantic import Field, ValidationError
+
+from flyby import pus
+from flyby.errors import FlybyError
+from flyby.model import Frozen
+from ground.segment import GroundSegment
+from ground.uplink import UplinkError, telecommand_of
+from timeline.convert import utc_seconds
+from timeline.model import CommandError, TimelineError, default_registry
+from timeline.parse import timeline_from_csv_text, timeline_from_yaml_text
+
+
+class OperatorError(FlybyError):
+    """An operator request ground refuses; the message says why."""
+
+
+class TrajectoryUpload(Frozen):
+    """A trajectory file: the new C/A (UTC or s from the epoch) and distance; other fields keep ground's values."""
+
+    ca_time_utc: str | None = Field(None, description="UTC of C/A, ISO 8601 with its zone")
+    ca_time_s: float | None = Field(None, description="C/A time, s after the scenario epoch")
+    ca_distance_km: float = Field(gt=0, description="C/A distance, km")
+    ca_time_sigma_s: float | None = Field(None, ge=0, description="one-sigma of the C/A time, s")
+    ca_distance_sigma_km: float | None = Field(None, ge=0, description="one-sigma of the C/A distance, km")
+
+
+def _yaml(payload: bytes, what: str) -> Any:
+    try:
+        return yaml.safe_load(payload.decode("utf-8"))
+    except (UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise OperatorError(f"{what}: not valid YAML: {exc}") from None
+
+
+def command_request(payload: bytes) -> pus.TcCommand:
+    """A single command ``{command: NAME, args: {...}}`` checked against the command registry."""
+    data = _yaml(payload, "command")
+    if not isinstance(data, dict) or "command" not in data:
+        raise OperatorError("command: expected a mapping with 'command' and optional 'args'")
+    extra = set(data) - {"command", "args"}
+    if extra:
+        raise OperatorError(f"command: unknown field(s) {sorted(extra)}")
+    try:
+        cmd = default_registry().command(str(data["command"]), data.get("args") or {})
+        return telecommand_of(cmd)
+    except CommandError as exc:
+        raise OperatorError(str(exc)) from None
+    except UplinkError as exc:
+        raise OperatorError(str(exc)) from None
+
+
+def trajectory_request(payload: bytes, segment: GroundSegment) -> pus.UploadNominalTrajectory:
+    """A new nominal trajectory, its C/A time turned into OBT with ground's current correlation."""
+    data = _yaml(payload, "trajectory")
+    try:
+        t = TrajectoryUpload.model_validate(data)
+    except ValidationError as exc:
+        e = exc.errors()[0]
+        raise OperatorError(f"trajectory: {'.'.join(map(str, e['loc']))}: {e['msg']}") from None
+    if (t.ca_time_utc is None) == (t.ca_time_s is None):
+        raise OperatorError("trajectory: give exactly one of ca_time_utc and ca_time_s")
+    if t.ca_time_utc is not None:
+        from datetime import datetime
+
+        try:
+            ca_s = utc_seconds(datetime.fromisoformat(t.ca_time_utc.replace("Z", "+00:00")), segment.scenario.epoch_utc)
+        except (ValueError, TypeError) as exc:
+            raise OperatorError(f"trajectory: ca_time_utc: {exc}") from None
+    else:
+        ca_s = float(t.ca_time_s)  # type: ignore[arg-type]
+    base = segment.nominal_trajectory_tc()
+    update: dict[str, Any] = {"ca_obt_s": segment.correlation.to_obt(ca_s), "ca_distance_km": t.ca_distance_km}
+    if t.ca_time_sigma_s is not None:
+        update["sigma_ca_time_s"] = t.ca_time_sigma_s
+    if t.ca_distance_sigma_km is not None:
+        update["sigma_ca_distance_km"] = t.ca_distance_sigma_km
+    return pus.UploadNominalTrajectory.model_validate({**base.model_dump(), **update})
+
+
+def timeline_request(payload: bytes, name: str, segment: GroundSegment,
+                     utc_s: float) -> tuple[pus.InsertActivities, list[str]]:
+    """A timeline file (YAML, or CSV when ``name`` ends in .csv) as one PUS 11 insert, tags in OBT, and the
+    commands refused because they would arrive too late."""
+    try:
+        text = payload.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise OperatorError(f"{name or 'timeline'}: not UTF-8 text: {exc}") from None
+    try:
+        if name.lower().endswith(".csv"):
+            timeline = timeline_from_csv_text(text, name)
+        else:
+            timeline = timeline_from_yaml_text(text, name or "<timeline>")
+    except TimelineError as exc:
+        raise OperatorError("; ".join(exc.problems)) from None
+    log: list[str] = []
+    insert = segment.timeline_upload(utc_s, segment.nominal_trajectory_tc(), log, timeline)
+    if insert is None:
+        raise OperatorError("timeline: " + ("; ".join(log) or "no command left to upload"))
+    return insert, log
