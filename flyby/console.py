@@ -174,7 +174,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     g.add_argument("--run", type=Path, default=None, metavar="RUN_DIR", help="print a recorded run's lines instead")
     what = g.add_mutually_exclusive_group()
     what.add_argument("--send", nargs="+", metavar=("COMMAND", "NAME=VALUE"),
-                      help="one command of the timeline dictionary, e.g. --send set_mode mode=SAFE")
+                      help="one command of the timeline dictionary (e.g. --send set_mode mode=SAFE) or a schedule request: "
+                           "schedule_time_shift delta_s=2.5 [request_ids=[4,5]], schedule_delete request_ids=[4], "
+                           "schedule_report [detail=true], ping")
     what.add_argument("--upload-timeline", metavar="FILE", help="a timeline file (YAML or CSV)")
     what.add_argument("--upload-trajectory", metavar="FILE",
                       help="a trajectory file: ca_time_utc or ca_time_s, ca_distance_km, optional sigmas")

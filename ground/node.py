@@ -89,7 +89,7 @@ def operator_request(segment: GroundSegment, msg: OperatorCommand, utc_s: float 
     """Queue the telecommands of an operator request, or refuse it with the reason."""
     try:
         if msg.action == "send":
-            cmds = [command_request(msg.payload)]
+            cmds = [command_request(msg.payload, segment.cfg.apid)]
             notes: list[str] = []
         elif msg.action == "upload_trajectory":
             cmds, notes = [trajectory_request(msg.payload, segment)], []

@@ -42,16 +42,57 @@ def _yaml(payload: bytes, what: str) -> Any:
         raise OperatorError(f"{what}: not valid YAML: {exc}") from None
 
 
-def command_request(payload: bytes) -> pus.TcCommand:
-    """A single command ``{command: NAME, args: {...}}`` checked against the command registry."""
+def _request_ids(args: dict[str, Any], apid: int, required: bool) -> tuple[pus.RequestId, ...] | None:
+    ids = args.get("request_ids")
+    if ids is None:
+        if required:
+            raise OperatorError("request_ids: required (the sequence counts of the scheduled telecommands)")
+        return None
+    if not isinstance(ids, list) or not ids or not all(isinstance(i, int) and 0 <= i <= pus.MAX_SEQ_COUNT for i in ids):
+        raise OperatorError(f"request_ids: must be a non-empty list of sequence counts 0..{pus.MAX_SEQ_COUNT}, "
+                            f"got {ids!r}")
+    return tuple(pus.RequestId(apid=apid, seq_count=i) for i in ids)
+
+
+def _schedule_command(name: str, args: dict[str, Any], apid: int) -> pus.TcCommand:
+    """PUS 11 and 17 requests that act on the on-board schedule or link, not on the timeline dictionary."""
+    known = {"schedule_time_shift": {"delta_s", "request_ids"}, "schedule_delete": {"request_ids"},
+             "schedule_report": {"detail", "request_ids"}, "ping": set()}
+    extra = set(args) - known[name]
+    if extra:
+        raise OperatorError(f"command '{name}': unknown argument(s) {sorted(extra)} (known: {sorted(known[name])})")
+    if name == "ping":
+        return pus.Ping()
+    if name == "schedule_delete":
+        return pus.DeleteActivities(request_ids=_request_ids(args, apid, required=True))
+    if name == "schedule_time_shift":
+        delta = args.get("delta_s")
+        if not isinstance(delta, int | float) or isinstance(delta, bool):
+            raise OperatorError(f"command 'schedule_time_shift': delta_s must be a number of seconds, got {delta!r}")
+        return pus.TimeShiftActivities(delta_s=float(delta), request_ids=_request_ids(args, apid, required=False))
+    ids = _request_ids(args, apid, required=False)
+    return pus.DetailReportRequest(request_ids=ids) if args.get("detail") else pus.SummaryReportRequest(request_ids=ids)
+
+
+SCHEDULE_COMMANDS = ("schedule_time_shift", "schedule_delete", "schedule_report", "ping")
+
+
+def command_request(payload: bytes, apid: int = 0x0C1) -> pus.TcCommand:
+    """A single command ``{command: NAME, args: {...}}``: one of the timeline dictionary, checked against the
+    registry, or a schedule/link request (``SCHEDULE_COMMANDS``) addressed to ``apid``."""
     data = _yaml(payload, "command")
     if not isinstance(data, dict) or "command" not in data:
         raise OperatorError("command: expected a mapping with 'command' and optional 'args'")
     extra = set(data) - {"command", "args"}
     if extra:
         raise OperatorError(f"command: unknown field(s) {sorted(extra)}")
+    name, args = str(data["command"]), data.get("args") or {}
+    if not isinstance(args, dict):
+        raise OperatorError(f"command '{name}': args must be a mapping of argument names")
+    if name in SCHEDULE_COMMANDS:
+        return _schedule_command(name, args, apid)
     try:
-        cmd = default_registry().command(str(data["command"]), data.get("args") or {})
+        cmd = default_registry().command(name, args)
         return telecommand_of(cmd)
     except CommandError as exc:
         raise OperatorError(str(exc)) from None

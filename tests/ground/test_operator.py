@@ -1,0 +1,72 @@
+"""Operator requests become the right telecommands, and bad ones are refused with the field named."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from flyby import pus
+from flyby.scenario import scenario_from_dict
+from ground.operator import OperatorError, command_request, timeline_request, trajectory_request
+from ground.segment import GroundSegment
+
+
+def _cmd(name: str, **args: object) -> bytes:
+    return yaml.safe_dump({"command": name, "args": args}).encode()
+
+
+def test_dictionary_command() -> None:
+    """set_mode SAFE becomes TC[200,1] with mode SAFE."""
+    tc = command_request(_cmd("set_mode", mode="SAFE"))
+    assert isinstance(tc, pus.SetMode) and tc.mode == pus.Mode.SAFE
+
+
+@pytest.mark.parametrize(("payload", "message"), [
+    (_cmd("set_mode", mode="WARP"), "mode"),
+    (_cmd("fly"), "unknown command 'fly'"),
+    (_cmd("schedule_time_shift", delta_s="soon"), "delta_s must be a number"),
+    (_cmd("schedule_delete"), "request_ids: required"),
+    (_cmd("schedule_delete", request_ids=[-1]), "request_ids: must be"),
+    (b"command: [", "not valid YAML"),
+])
+def test_bad_commands_are_refused(payload: bytes, message: str) -> None:
+    """Each bad request is refused with a message naming what is wrong."""
+    with pytest.raises(OperatorError, match=message):
+        command_request(payload)
+
+
+def test_schedule_requests() -> None:
+    """Schedule requests become the PUS 11 telecommands with the operator's request ids."""
+    shift = command_request(_cmd("schedule_time_shift", delta_s=2.5, request_ids=[4, 5]), apid=0x0C1)
+    assert isinstance(shift, pus.TimeShiftActivities) and shift.delta_s == 2.5
+    assert [r.seq_count for r in shift.request_ids or ()] == [4, 5]
+    assert isinstance(command_request(_cmd("schedule_delete", request_ids=[7])), pus.DeleteActivities)
+    assert isinstance(command_request(_cmd("schedule_report", detail=True)), pus.DetailReportRequest)
+    assert isinstance(command_request(_cmd("schedule_report")), pus.SummaryReportRequest)
+    # each encodes as a valid packet
+    for tc in (shift, command_request(_cmd("ping"))):
+        header, back = pus.decode_tc(pus.encode_tc(tc, 0x0C1, 1))
+        assert back == tc
+
+
+def test_trajectory_upload_uses_the_correlation() -> None:
+    """A trajectory at C/A = 170 s UTC is uploaded at OBT = correlation(170 s)."""
+    seg = GroundSegment(scenario_from_dict({"name": "x"}))
+    tc = trajectory_request(yaml.safe_dump({"ca_time_s": 170.0, "ca_distance_km": 54.0}).encode(), seg)
+    assert tc.ca_obt_s == pytest.approx(seg.correlation.to_obt(170.0))
+    assert tc.ca_distance_km == 54.0
+    with pytest.raises(OperatorError, match="exactly one of"):
+        trajectory_request(yaml.safe_dump({"ca_distance_km": 54.0}).encode(), seg)
+
+
+def test_timeline_upload_refuses_late_commands() -> None:
+    """A timeline with one command too late for the light time uploads the rest and says which was refused."""
+    seg = GroundSegment(scenario_from_dict({"name": "x"}))
+    text = yaml.safe_dump({"commands": [
+        {"time": "CA-300s", "command": "stop_imaging"},
+        {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},
+    ]}).encode()
+    # at UTC 0 with 33.4 s light time, C/A-300 s (about -130 s) is already past
+    insert, notes = timeline_request(text, "t.yaml", seg, utc_s=0.0)
+    assert len(insert.activities) == 1
+    assert any("row 1" in n for n in notes)
