@@ -1,0 +1,74 @@
+"""Ctrl-C stops every node and leaves no process behind; garbage on the bus is counted, logged and survived."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from flyby.bus import Keys, session_config
+from tests.integration.conftest import DATA, start_nodes, stop_nodes
+
+pytestmark = pytest.mark.integration
+
+
+def _processes_mentioning(text: str) -> list[int]:
+    """PIDs of live processes whose command line contains ``text``."""
+    pids = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                cmd = (d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if text in cmd and int(d.name) != os.getpid():
+                pids.append(int(d.name))
+    return pids
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_ctrl_c_stops_everything(tmp_path: Path) -> None:
+    """SIGINT to `flyby run` ends it with code 130 and no node process survives."""
+    out = tmp_path / "run"
+    launcher = subprocess.Popen([sys.executable, "-m", "flyby.cli", "run", str(DATA / "operator.yaml"), "--realtime",
+                                 "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 90
+    while not (out / "universe.log").exists() or "peers up" not in (out / "universe.log").read_text():
+        assert time.monotonic() < deadline and launcher.poll() is None, "the run never started"
+        time.sleep(0.2)
+    assert len(_processes_mentioning(str(out))) >= 3
+    launcher.send_signal(signal.SIGINT)
+    text, _ = launcher.communicate(timeout=60)
+    assert launcher.returncode == 130, text
+    assert "interrupted" in text
+    time.sleep(0.5)
+    assert _processes_mentioning(str(out)) == [], "orphan node processes"
+
+
+def test_garbage_messages_are_counted_and_survived(tmp_path: Path) -> None:
+    """Undecodable messages on every key of the lock-step are logged and counted; the run still completes."""
+    procs, ep, run_id = start_nodes(tmp_path, DATA / "short.yaml", realtime=False)
+    keys = Keys(run_id)
+    try:
+        with zenoh.open(session_config(connect=list(ep.values()))) as s:
+            pubs = [s.declare_publisher(k) for k in (keys.step, keys.reply, keys.ground_step, keys.ground_reply)]
+            deadline = time.monotonic() + 120
+            while procs["universe"].poll() is None:
+                assert time.monotonic() < deadline, "the run did not end"
+                for p in pubs:
+                    p.put(b"\x00\x00\x00\x04{no}")
+                time.sleep(0.02)
+        codes = {n: p.wait(timeout=30) for n, p in procs.items()}
+        assert codes == {"universe": 0, "obsw": 0, "ground": 0}
+        logs = {n: (tmp_path / f"{n}.log").read_text() for n in procs}
+        assert "undecodable message" in logs["universe"] and "undecodable message" in logs["obsw"]
+        assert "undecodable message" in logs["ground"]
+        assert "run complete" in logs["universe"]
+    finally:
+        stop_nodes(procs)
