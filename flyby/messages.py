@@ -86,6 +86,12 @@ class TruthRecord(Frozen):
     range_m: float
     theta_rad: float
     phase_angle_deg: float
+    los_dimorphos_inertial: tuple[float, float, float] | None = Field(None, description="unit LOS to Dimorphos")
+    los_didymos_inertial: tuple[float, float, float] | None = Field(None, description="unit LOS to Didymos")
+    dimorphos_camera: tuple[float, float, float] | None = Field(
+        None, description="unit vector to Dimorphos in camera axes (x columns, y rows, z boresight)"
+    )
+    range_didymos_m: float | None = Field(None, description="range to the Didymos centre, m")
     frame_id: int | None = Field(None, description="camera frame exposed at this period, if any")
     dimorphos_px: tuple[float, float] | None = Field(None, description="true (col, row) of Dimorphos in that frame")
     didymos_px: tuple[float, float] | None = Field(None, description="true (col, row) of Didymos in that frame")

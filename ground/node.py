@@ -52,12 +52,17 @@ class TruthLog:
         if not self._header:
             n = len(rec.wheel_momentum_nms)
             self._w.writerow([*TRUTH_COLUMNS, "frame_id", "dimorphos_col", "dimorphos_row", "didymos_col",
-                              "didymos_row", *(f"h{i}_nms" for i in range(n)), *(f"u{i}_nm" for i in range(n))])
+                              "didymos_row", *(f"h{i}_nms" for i in range(n)), *(f"u{i}_nm" for i in range(n)),
+                              "los_dim_x", "los_dim_y", "los_dim_z", "los_did_x", "los_did_y", "los_did_z",
+                              "dim_cam_x", "dim_cam_y", "dim_cam_z", "range_didymos_m"])
             self._header = True
         self._w.writerow([rec.t_s, rec.obt_s, *rec.q, *rec.omega_rad_s, rec.pointing_error_rad,
                           int(rec.target_in_fov), rec.range_m, rec.theta_rad, rec.phase_angle_deg,
                           "" if rec.frame_id is None else rec.frame_id, *(rec.dimorphos_px or ("", "")),
-                          *(rec.didymos_px or ("", "")), *rec.wheel_momentum_nms, *rec.wheel_torque_nm])
+                          *(rec.didymos_px or ("", "")), *rec.wheel_momentum_nms, *rec.wheel_torque_nm,
+                          *(rec.los_dimorphos_inertial or ("", "", "")), *(rec.los_didymos_inertial or ("", "", "")),
+                          *(rec.dimorphos_camera or ("", "", "")),
+                          "" if rec.range_didymos_m is None else rec.range_didymos_m])
         self.rows.append(rec)
 
     def close(self) -> None:

@@ -42,6 +42,10 @@ def pointing_attitude(los_inertial: np.ndarray, roll_ref_inertial: np.ndarray) -
     return Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z]))
 
 
+def _vec(v: np.ndarray) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
 class FaultBook:
     """The scenario's faults: which are active at a time, and a log line at each start and end."""
 
@@ -218,6 +222,8 @@ class Universe:
             wheel_torque_nm=tuple(float(c) for c in self.torque_nm),
             pointing_error_rad=ts.pointing_error_rad, target_in_fov=ts.target_in_fov,
             range_m=ts.range_to_dimorphos_m, theta_rad=ts.theta_rad, phase_angle_deg=ts.phase_angle_deg,
+            los_dimorphos_inertial=_vec(ts.los_dimorphos_inertial), los_didymos_inertial=_vec(ts.los_didymos_inertial),
+            dimorphos_camera=_vec(ts.los_dimorphos_camera), range_didymos_m=ts.range_to_didymos_m,
         ))
 
     def take_log(self) -> list[str]:
