@@ -91,6 +91,27 @@ class TrackingConfig(Frozen):
         description="the last measured offset is extrapolated along its last slope for at most this long, then "
         "held, s (three frame periods at the 1 s default camera cadence)",
     )
+    gate_release_count: int = Field(
+        4,
+        ge=0,
+        description="after this many consecutive measurements ignored by the innovation gate the next is taken "
+        "whatever its offset, count (4: two seconds at the 0.5 s cadence around C/A, longer than one "
+        "misidentified blob lasts, shorter than the loop's 17 s settling)",
+    )
+    autonomous_gate_deg: float = Field(
+        0.12,
+        gt=0,
+        description="in AUTONOMOUS_TRACKING, a measured LOS whose offset from the recognised trajectory is this "
+        "far from the loop's prediction is not fed back, deg (21 px at 512: twice the largest innovation of a "
+        "valid detection, 0.06 deg, in the bench/closedloop.py flybys; a part of the crescent taken for Dimorphos "
+        "at C/A+48 s in worst-early-far was 0.17 deg off)",
+    )
+    autonomous_extrapolation: bool = Field(
+        False,
+        description="in AUTONOMOUS_TRACKING, extend the measured offset along its slope between frames (False: "
+        "hold it; the recognised trajectory carries the LOS motion, so a slope is noise or a misidentified "
+        "blob, and one at C/A+48 s drove the pointing 1.2 deg off in 3 s of extrapolation)",
+    )
     boresight_body: tuple[float, float, float] = Field(
         (0.0, 0.0, 1.0), description="on-board knowledge of the camera boresight, body axes (camera config default)"
     )

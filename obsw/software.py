@@ -354,8 +354,12 @@ class FlightSoftware:
         traj = self.pointing_trajectory()
         if self.modes.mode in POINTING_MODES and traj is not None:
             meas = seen if self.modes.mode in TRACKING_MODES else None
+            autonomous = self.modes.mode == Mode.AUTONOMOUS_TRACKING and traj is self.autonomous_trajectory
+            tc = self.cfg.tracking
             ref = self.tracking.update(obt, dt, traj, None if meas is None else meas[1],
-                                       measured_obt_s=None if meas is None else min(meas[0], obt))
+                                       measured_obt_s=None if meas is None else min(meas[0], obt),
+                                       extrapolate=tc.autonomous_extrapolation or not autonomous,
+                                       gate_rad=math.radians(tc.autonomous_gate_deg) if autonomous else None)
         else:  # hold the current attitude, rate to zero
             if self.last_reference is None or self.modes.mode not in (Mode.STANDBY, Mode.SAFE):
                 self.tracking.reset()

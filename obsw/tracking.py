@@ -142,6 +142,9 @@ class TrackingLoop:
         # last two measurements: (loop time, OBT, measured LOS inertial)
         self._meas: list[tuple[float, float, NDArray[np.float64]]] = []
         self._line: _Line | None = None  # the input, from the measurements and the current trajectory
+        self._extrapolate = True
+        self.rejected_count = 0  # measurements ignored by the gate since the last reset
+        self._rejected_run = 0  # consecutive measurements ignored by the gate
 
     @property
     def correction_rotvec(self) -> NDArray[np.float64]:
@@ -160,7 +163,7 @@ class TrackingLoop:
         t_k, obt_k, los_k = self._meas[-1]
         y_k = offset_rotvec(trajectory.los_inertial(obt_k), los_k)
         slope = np.zeros(3)
-        if len(self._meas) == 2:
+        if len(self._meas) == 2 and self._extrapolate:
             t_j, obt_j, los_j = self._meas[0]
             gap = t_k - t_j
             if 0 < gap <= self.cfg.extrapolation_limit_s:
@@ -222,6 +225,8 @@ class TrackingLoop:
         trajectory: NominalTrajectory,
         los_measured_inertial: ArrayLike | None,
         measured_obt_s: float | None = None,
+        extrapolate: bool = True,
+        gate_rad: float | None = None,
     ) -> Reference:
         """Advance the loop by ``dt_s`` to ``obt_s``, take the measured LOS (inertial unit vector, or None when the
         target was not seen), and return the reference at ``obt_s``.
@@ -232,6 +237,12 @@ class TrackingLoop:
         ``dt_s`` (the control period) drives the loop, ``obt_s`` the trajectory, so an OBT jump does not make the
         loop integrate over the jump. The first call starts the loop at ``obt_s`` and ignores ``dt_s``. A change
         of ``trajectory`` (e.g. to the recognised one) keeps the commanded attitude and rate continuous.
+
+        ``extrapolate=False`` holds the last measured offset instead of extending its slope: when the trajectory
+        model already carries the LOS motion (the recognised trajectory), the offset is a slowly varying bias and
+        a slope between two measurements is mostly their noise, or one misidentified blob, amplified.
+        ``gate_rad`` ignores a measurement whose offset is farther than this from the loop's prediction of it
+        (counted in ``rejected_count``), unless the ``cfg.gate_release_count`` before it were all ignored.
         """
         if not np.isfinite(obt_s):
             raise ValueError(f"obt_s must be finite, got {obt_s}")
@@ -243,6 +254,10 @@ class TrackingLoop:
                 raise ValueError(f"los_measured_inertial must be a unit 3-vector, got {los_measured_inertial}")
             if measured_obt_s is not None and not (np.isfinite(measured_obt_s) and measured_obt_s <= obt_s):
                 raise ValueError(f"measured_obt_s {measured_obt_s} must be finite and not after obt_s {obt_s}")
+        if gate_rad is not None and not gate_rad > 0:
+            raise ValueError(f"gate_rad must be > 0 or None, got {gate_rad}")
+        switched = extrapolate != self._extrapolate
+        self._extrapolate = bool(extrapolate)
         if self._t is None:
             self._t = 0.0
         else:
@@ -254,11 +269,28 @@ class TrackingLoop:
         self._obt = float(obt_s)
         if los is not None:
             taken = self._obt if measured_obt_s is None else float(measured_obt_s)
-            self._meas = [*self._meas[-1:], (self._t - (self._obt - taken), taken, los)]
-        if los is not None or trajectory != self._trajectory:
+            t_taken = self._t - (self._obt - taken)
+            # a run of rejections means the scene, not one blob, has moved: take the measurement again
+            if gate_rad is not None and self._line is not None and self._rejected_run < self.cfg.gate_release_count \
+                    and self._innovation_rad(trajectory, t_taken, taken, los) > gate_rad:
+                self.rejected_count += 1
+                self._rejected_run += 1
+                los = None
+            else:
+                self._rejected_run = 0
+                self._meas = [*self._meas[-1:], (t_taken, taken, los)]
+        if los is not None or switched or trajectory != self._trajectory:
             self._line = self._input_line(trajectory)
         self._trajectory = trajectory
         return self._reference(trajectory)
+
+    def _innovation_rad(self, trajectory: NominalTrajectory, t_taken: float, obt_taken: float,
+                        los: NDArray[np.float64]) -> float:
+        """Distance of a measured offset from the loop's prediction of it (the input line, else the correction)."""
+        y = offset_rotvec(trajectory.los_inertial(obt_taken), los)
+        line = self._input_line(trajectory) if self._line is not None else None
+        predicted = self._c if line is None else self._input_at(line, t_taken)[0]
+        return float(np.linalg.norm(y - predicted))
 
     def _reference(self, trajectory: NominalTrajectory) -> Reference:
         """R_des = R(c) R_pred; omega and alpha from theta', theta'' about the normal plus the correction's motion."""

@@ -11,8 +11,10 @@ from scipy.spatial.transform import Rotation
 from flyby import pus
 from flyby.messages import FrameMeta, SensorData, StepRequest
 from flyby.scenario import scenario_from_dict
-from obsw.config import ObswConfig
+from obsw.config import ObswConfig, TrackingConfig
 from obsw.software import FlightSoftware
+from obsw.tracking import TrackingLoop
+from obsw.trajectory import NominalTrajectory
 from timeline.parse import timeline_from_data
 from universe.config import CameraConfig, SpacecraftConfig
 from universe.geometry import FlybyGeometry
@@ -230,3 +232,52 @@ def test_short_flyby_in_the_loop_holds_dimorphos_through_ca() -> None:
     last = estimates[-1]
     assert abs(last.continuous_ca_obt_s - ca_obt) < 0.1
     assert abs(last.continuous_ca_distance_km - ca.fun / 1e3) < 0.3
+
+
+# --- the tracking feedback in autonomous tracking -----------------------------------------------------------------
+
+LINE = NominalTrajectory(ca_time_obt_s=0.0, ca_distance_km=55.0, speed_km_s=7.0, approach_direction=(1.0, 0.0, 0.0),
+                         ca_direction=(0.0, 1.0, 0.0))
+
+
+def _offset_los(t: float, offset_rad: float) -> np.ndarray:
+    """The trajectory's LOS at t turned by offset_rad about the plane normal."""
+    return Rotation.from_rotvec(offset_rad * LINE.plane_normal).apply(LINE.los_inertial(t))
+
+
+def _settled_correction(measurements: list[tuple[float, float]], extrapolate: bool, gate_rad: float | None = None,
+                        end_s: float = -40.0) -> TrackingLoop:
+    """Run the loop from C/A-100 s at 10 Hz with offset measurements (t, offset rad) until end_s."""
+    loop = TrackingLoop(TrackingConfig())
+    pending = dict(measurements)
+    for k in range(int(round((end_s + 100.0) / DT)) + 1):
+        t = round(-100.0 + k * DT, 6)
+        off = pending.get(t)
+        loop.update(t, DT, LINE, None if off is None else _offset_los(t, off), extrapolate=extrapolate,
+                    gate_rad=gate_rad)
+    return loop
+
+
+def test_held_offset_settles_on_the_last_measurement_and_extrapolated_on_its_slope() -> None:
+    """After two measurements 1 s apart then none, the correction settles on the last offset when held, and on
+    the last offset plus slope x extrapolation limit when extrapolated (the loop's type-2 steady state)."""
+    meas = [(-95.0, 1e-3), (-94.0, 2e-3)]
+    held = _settled_correction(meas, extrapolate=False).correction_rotvec @ LINE.plane_normal
+    extended = _settled_correction(meas, extrapolate=True).correction_rotvec @ LINE.plane_normal
+    assert held == pytest.approx(2e-3, abs=2e-6)
+    assert extended == pytest.approx(2e-3 + 1e-3 * TrackingConfig().extrapolation_limit_s, abs=2e-6)
+
+
+def test_gate_ignores_an_outlier_and_takes_a_lasting_shift() -> None:
+    """An offset 2 mrad off the prediction is ignored under a 1 mrad gate (the loop runs exactly as without it);
+    a shift lasting longer than gate_release_count measurements is taken after them."""
+    base = [(-95.0 + 0.5 * i, 1e-3) for i in range(10)]
+    clean = _settled_correction(base, extrapolate=False, gate_rad=1e-3)
+    outlier = _settled_correction([*base[:5], (-92.5, 3e-3), *base[6:]], extrapolate=False, gate_rad=1e-3)
+    assert outlier.rejected_count == 1 and clean.rejected_count == 0
+    assert np.array_equal(outlier.correction_rotvec, clean.correction_rotvec)
+    release = TrackingConfig().gate_release_count
+    shifted = _settled_correction([*base, *((-90.0 + 0.5 * i, 4e-3) for i in range(release + 4))],
+                                  extrapolate=False, gate_rad=1e-3)
+    assert shifted.rejected_count == release
+    assert shifted.correction_rotvec @ LINE.plane_normal == pytest.approx(4e-3, abs=2e-5)
