@@ -33,6 +33,9 @@ class Received:
     blob: bytes
 
 
+DEPARTURE_GRACE_S = 1.0  # longest wait for the Shutdown of a run that ended normally, after a peer left
+
+
 class PeerStopped(Exception):
     """A peer ended the run normally (a ``Shutdown`` that is not a failure)."""
 
@@ -193,7 +196,7 @@ class Attachment:
             elif what == "down":
                 self._alive.discard(item)
                 if item != self.node:
-                    raise NodeFailure(item, self.sim_time_s, "died (its bus liveliness token vanished)")
+                    self._fail_unless_stopped(item)
             else:
                 msg = item.msg
                 if isinstance(msg, Shutdown):
@@ -203,6 +206,33 @@ class Attachment:
                         raise RelayedFailure(msg)
                     raise PeerStopped(msg)
                 return item
+
+    def _fail_unless_stopped(self, node: str) -> None:
+        """A peer left: if the run was ending, the Shutdown saying so may still be on its way by another route, so
+        wait up to ``DEPARTURE_GRACE_S`` for it (keeping whatever else arrives) before calling it a death."""
+        end = self.clock.now() + DEPARTURE_GRACE_S
+        kept: list[tuple[str, Any]] = []
+        try:
+            while (left := end - self.clock.now()) > 0:
+                try:
+                    what, item = self._inbox.get(timeout=left)
+                except queue.Empty:
+                    break
+                if what == "msg" and isinstance(item.msg, Shutdown) and item.msg.node != self.node:
+                    if item.msg.failed:
+                        raise RelayedFailure(item.msg)
+                    raise PeerStopped(item.msg)
+                kept.append((what, item))
+            raise NodeFailure(node, self.sim_time_s, "died (its bus liveliness token vanished)")
+        finally:
+            rest: list[tuple[str, Any]] = []
+            while True:
+                try:
+                    rest.append(self._inbox.get_nowait())
+                except queue.Empty:
+                    break
+            for entry in kept + rest:
+                self._inbox.put(entry)
 
     def close(self) -> None:
         """Withdraw the liveliness token first, so peers see a clean departure before the session closes."""
