@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from scipy.spatial.transform import Rotation
-from opencv_reference import (
+from tests.obsw.opencv_reference import (
     SyntheticBody,
     reference_8bit,
     reference_binned,
