@@ -38,6 +38,7 @@ Model, in the order the light goes through it:
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -227,6 +228,9 @@ def _image_velocity_px_s(v_c: np.ndarray, dv_c: np.ndarray, f: float) -> np.ndar
 # Point-spread function with motion smear
 
 
+_POINT_SMEAR_PX = 1e-3  # smear lengths up to this (px) use the plain Gaussian
+
+
 def smeared_psf(dx: np.ndarray, dy: np.ndarray, sigma_px: float, lx: np.ndarray, ly: np.ndarray) -> np.ndarray:
     """Unit-integral Gaussian PSF (sigma) convolved with a centred line segment (lx, ly) px, at offsets (dx, dy).
 
@@ -248,7 +252,7 @@ def smeared_psf(dx: np.ndarray, dy: np.ndarray, sigma_px: float, lx: np.ndarray,
         * (erf((s + 0.5 * length) * k) - erf((s - 0.5 * length) * k))
         / safe
     )
-    return np.where(length > 1e-3, line, point)
+    return np.where(length > _POINT_SMEAR_PX, line, point)
 
 
 def psf_half_size_px(sigma_px: float, smear_px: float) -> int:
@@ -551,61 +555,70 @@ class _BodyCaster:
 _SUBSAMPLE_MIN_PX = 48.0  # bodies at least this wide are cast on a 2 px grid inside, per pixel along edges
 
 
-def _upsample2(a: np.ndarray) -> np.ndarray:
-    """Bilinear 2x upsampling of node values (n, m) onto (2n - 2, 2m - 2) pixels, nodes at the even pixels."""
-    out = np.empty((2 * a.shape[0] - 2, 2 * a.shape[1] - 2), dtype=a.dtype)
-    a00, a10, a01, a11 = a[:-1, :-1], a[1:, :-1], a[:-1, 1:], a[1:, 1:]
-    out[0::2, 0::2] = a00
-    out[1::2, 0::2] = (a00 + a10) * 0.5
-    out[0::2, 1::2] = (a00 + a01) * 0.5
-    out[1::2, 1::2] = (a00 + a10 + a01 + a11) * 0.25
-    return out
+def grid_step_px(diameter_px: float) -> int:
+    """Node spacing (px) of the first ray-casting pass for a body ``diameter_px`` wide: 1 or 2."""
+    return 1 if diameter_px < _SUBSAMPLE_MIN_PX else 2
+
+
+def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
+    """Bilinear interpolation of node values (n, m) at pixels (h, w) of a grid with a node every ``step`` px.
+
+    Node (i, j) sits on pixel (step i, step j); ``cv2.warpAffine`` with the exact scale ``step`` (a power of two,
+    so its 1/32 px fixed-point weights are exact) does the interpolation.
+    """
+    m = np.array([[step, 0.0, 0.0], [0.0, step, 0.0]], dtype=np.float64)
+    return cv2.warpAffine(nodes, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _cast_body(
     view: _BodyView, c2i: np.ndarray, sun_c: np.ndarray, cfg: CameraConfig, f: float, cx: float, cy: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ray-cast one body over its box: flat pixel indices within the box, depth (m) and signal (e-/s) of hits.
+) -> tuple[np.ndarray, np.ndarray]:
+    """Ray-cast one body over its box: depth (m, inf where the body is not hit) and signal (e-/s), both (h, w).
 
-    Small bodies are cast at every pixel. Wider ones are cast at every second pixel first; the 2x2 cells whose four
-    corners hit the body at similar depths are interpolated (the shading is smooth there), and every pixel of the
-    other cells that touch the body (limb, occluding edges) is cast on its own.
+    Small bodies are cast at every pixel. Wider ones are cast at every ``grid_step_px`` pixel first; the cells
+    whose four corners hit the body at similar depths are interpolated bilinearly (the shading is smooth there),
+    and every pixel of the other cells that touch the body (limb, occluding edges) is cast on its own.
     """
     r0, r1, c0, c1 = view.box
     h, w = r1 - r0, c1 - c0
     caster = _BodyCaster(view, c2i, sun_c, cfg, f, cx, cy)
-    if caster.diameter_px < _SUBSAMPLE_MIN_PX:
-        rows = np.repeat(np.arange(r0, r1), w)
-        cols = np.tile(np.arange(c0, c1), h)
-        return caster.cast(rows, cols)
-    hc, wc = h // 2 + 2, w // 2 + 2
-    node_rows = np.repeat(r0 + 2 * np.arange(hc), wc)
-    node_cols = np.tile(c0 + 2 * np.arange(wc), hc)
-    hit_n, depth_n, sig_n = caster.cast(node_rows, node_cols)
+    depth = np.full(h * w, np.inf, dtype=np.float32)
+    sig = np.zeros(h * w, dtype=np.float32)
+    k = grid_step_px(caster.diameter_px)
+    if k == 1:
+        hit, dep, val = caster.cast(np.repeat(np.arange(r0, r1), w), np.tile(np.arange(c0, c1), h))
+        depth[hit] = dep
+        sig[hit] = val
+        return depth.reshape(h, w), sig.reshape(h, w)
+    hc, wc = h // k + 2, w // k + 2
+    hit_n, depth_n, sig_n = caster.cast(np.repeat(r0 + k * np.arange(hc), wc), np.tile(c0 + k * np.arange(wc), hc))
     hit = np.zeros(hc * wc, dtype=bool)
     hit[hit_n] = True
     hit = hit.reshape(hc, wc)
-    depth = np.zeros(hc * wc, dtype=np.float32)
-    depth[hit_n] = depth_n
-    depth = depth.reshape(hc, wc)
-    sig = np.zeros(hc * wc, dtype=np.float32)
-    sig[hit_n] = sig_n
-    sig = sig.reshape(hc, wc)
+    node_depth = np.zeros(hc * wc, dtype=np.float32)
+    node_depth[hit_n] = depth_n
+    node_depth = node_depth.reshape(hc, wc)
+    node_sig = np.zeros(hc * wc, dtype=np.float32)
+    node_sig[hit_n] = sig_n
+    node_sig = node_sig.reshape(hc, wc)
     corners = hit[:-1, :-1].astype(np.int8) + hit[1:, :-1] + hit[:-1, 1:] + hit[1:, 1:]
-    d = np.stack([depth[:-1, :-1], depth[1:, :-1], depth[:-1, 1:], depth[1:, 1:]])
+    d00, d10, d01, d11 = node_depth[:-1, :-1], node_depth[1:, :-1], node_depth[:-1, 1:], node_depth[1:, 1:]
+    spread = np.maximum(np.maximum(d00, d10), np.maximum(d01, d11)) - np.minimum(np.minimum(d00, d10), np.minimum(d01, d11))
     # a depth step of more than 3 cell widths inside a cell means an occluding edge of the surface there
-    smooth = (corners == 4) & (d.max(axis=0) - d.min(axis=0) < np.float32(6.0 * caster.dist / f))
+    smooth = (corners == 4) & (spread < np.float32(3.0 * k * caster.dist / f))
     rough = (corners > 0) & ~smooth
-    smooth_px = np.flatnonzero(np.repeat(np.repeat(smooth, 2, axis=0), 2, axis=1)[:h, :w])
-    rough_px = np.flatnonzero(np.repeat(np.repeat(rough, 2, axis=0), 2, axis=1)[:h, :w])
+    cell_class = smooth.astype(np.uint8) + 2 * rough.astype(np.uint8)  # 1: interpolated, 2: cast per pixel
+    px_class = cv2.resize(cell_class, ((wc - 1) * k, (hc - 1) * k), interpolation=cv2.INTER_NEAREST)[:h, :w]
+    smooth_px = px_class == 1
+    up_depth = upsampled_nodes(node_depth, k, h, w)
+    up_sig = upsampled_nodes(node_sig, k, h, w)
+    depth = np.where(smooth_px, up_depth, np.float32(np.inf)).reshape(-1)
+    sig = np.where(smooth_px, up_sig, np.float32(0.0)).reshape(-1)
+    rough_px = np.flatnonzero(px_class == 2)
     hit_r, depth_r, sig_r = caster.cast(r0 + rough_px // w, c0 + rough_px % w)
-    sig_full = _upsample2(sig)[:h, :w].ravel()[smooth_px]
-    depth_full = _upsample2(depth)[:h, :w].ravel()[smooth_px]
-    return (
-        np.concatenate([smooth_px, rough_px[hit_r]]),
-        np.concatenate([depth_full, depth_r]),
-        np.concatenate([sig_full, sig_r]),
-    )
+    depth[rough_px[hit_r]] = depth_r
+    sig[rough_px[hit_r]] = sig_r
+    return depth.reshape(h, w), sig.reshape(h, w)
 
 
 @dataclass
@@ -750,37 +763,42 @@ def _plume_signal(
     cols = c0 + (np.arange(gw) + 0.5) * (w / gw) - 0.5
     rows = r0 + (np.arange(gh) + 0.5) * (h / gh) - 0.5
     dx, dy = np.meshgrid((cols - cx) / f, (rows - cy) / f)
-    d = np.stack([dx, dy, np.ones_like(dx)], axis=-1)
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    inv = 1.0 / np.sqrt(dx * dx + dy * dy + 1.0)
+    d = (dx * inv, dy * inv, inv)
     p = -centre_c
-    t_c = -(d @ p)
-    q_c = p + t_c[..., None] * d
-    b = np.linalg.norm(q_c, axis=-1)
+    t_c = -(d[0] * p[0] + d[1] * p[1] + d[2] * p[2])
+    q_c = (p[0] + t_c * d[0], p[1] + t_c * d[1], p[2] + t_c * d[2])  # closest point of each ray to the source
+    b = np.sqrt(q_c[0] * q_c[0] + q_c[1] * q_c[1] + q_c[2] * q_c[2])
     b_eff = np.maximum(b, 0.5 * src.radius_m)
     phi_max = np.arctan(np.sqrt(np.maximum(big_r * big_r - b * b, 0.0)) / b_eff)
-    frac = (np.arange(_PLUME_STEPS) + 0.5) / _PLUME_STEPS * 2.0 - 1.0
-    phi = frac[:, None, None] * phi_max[None]  # (steps, gh, gw)
-    ell = b_eff[None] * np.tan(phi)
-    x = q_c[None] + ell[..., None] * d[None]
-    rr = np.linalg.norm(x, axis=-1)
     axis_c = c2i.T @ _unit3("PlumeConfig.axis_inertial", plume.axis_inertial)
-    cos_ang = (x @ axis_c) / np.maximum(rr, 1e-9)
+    q_axis = q_c[0] * axis_c[0] + q_c[1] * axis_c[1] + q_c[2] * axis_c[2]
+    d_axis = d[0] * axis_c[0] + d[1] * axis_c[1] + d[2] * axis_c[2]
+    # samples symmetric about the closest point: x = q + ell d and q . d = 0, so |x|^2 = b^2 + ell^2 for +-ell
+    half = _PLUME_STEPS // 2
+    frac = (np.arange(half) + 0.5) / half
+    ell = b_eff[None] * np.tan(frac[:, None, None] * phi_max[None])  # (steps/2, gh, gw), ell >= 0
+    rr = np.sqrt(b[None] * b[None] + ell * ell)
+    inv_rr = 1.0 / np.maximum(rr, 1e-9)
     # the cone wall is not sharp (ejection directions scatter): a linear ramp over +-5 deg about the half-angle
     c_out = math.cos(math.radians(min(plume.half_angle_deg + 5.0, 90.0)))
     c_in = math.cos(math.radians(max(plume.half_angle_deg - 5.0, 0.0)))
-    edge = np.clip((cos_ang - c_out) / (c_in - c_out), 0.0, 1.0)
-    inside = edge * (rr >= src.radius_m)
+    ramp = 1.0 / (c_in - c_out)
+    along = ell * d_axis[None]
+    edge_sum = np.clip(((q_axis[None] + along) * inv_rr - c_out) * ramp, 0.0, 1.0)
+    edge_sum += np.clip(((q_axis[None] - along) * inv_rr - c_out) * ramp, 0.0, 1.0)
+    inside_sum = (edge_sum * (rr >= src.radius_m)).sum(axis=0)
     omega = 2.0 * math.pi * (1.0 - math.cos(math.radians(plume.half_angle_deg)))
     dphi = 2.0 * phi_max / _PLUME_STEPS
-    tau = area / (omega * big_r) * inside.sum(axis=0) * dphi / b_eff
+    tau = area / (omega * big_r) * inside_sum * dphi / b_eff
     sun_c = c2i.T @ scene.sun_direction
     cos_alpha = float(sun_c @ (p / np.linalg.norm(p)))
     coarse = (cfg.body_signal_e_s * plume.reflectance_factor * _phase_factor(cfg, cos_alpha)) * (-np.expm1(-tau))
-    fine = cv2.resize(coarse.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
     # keep the part that can change a pixel: more than 1 % of the read noise (or of one electron) in the exposure
     floor_e_s = 0.01 * max(cfg.read_noise_e, 1.0) / scene.exposure_s
-    rows_on = np.flatnonzero((coarse > floor_e_s).any(axis=1))
-    cols_on = np.flatnonzero((coarse > floor_e_s).any(axis=0))
+    on = coarse > floor_e_s
+    rows_on = np.flatnonzero(on.any(axis=1))
+    cols_on = np.flatnonzero(on.any(axis=0))
     if rows_on.size == 0:
         return None
     # one node of margin: bilinear resampling spreads a node over its neighbours' cells
@@ -788,6 +806,7 @@ def _plume_signal(
     rb = int(min(h, math.ceil((rows_on[-1] + 2.5) * h / gh)))
     ca = int(max(0, math.floor((cols_on[0] - 0.5) * w / gw)))
     cb = int(min(w, math.ceil((cols_on[-1] + 2.5) * w / gw)))
+    fine = cv2.resize(coarse.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
     return (r0 + ra, r0 + rb, c0 + ca, c0 + cb), fine[ra:rb, ca:cb]
 
 
@@ -796,18 +815,24 @@ def _plume_signal(
 
 
 NORMAL_QUANTILES = ndtri((np.arange(65536, dtype=np.float64) + 0.5) / 65536.0).astype(np.float32)
+_FULL_FRAME_FRACTION = 0.5  # signal boxes covering more of the frame than this are digitised as one full frame
 
 
 def normal_codes(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
-    """Independent uniform 16-bit codes; ``NORMAL_QUANTILES[codes]`` are standard normal deviates (inverse CDF)."""
+    """Independent uniform 16-bit codes; ``NORMAL_QUANTILES[codes]`` are standard normal deviates (inverse CDF).
+
+    The codes are the raw 64-bit outputs of the generator's bit generator cut in four (its cheapest draw).
+    """
     n = int(np.prod(shape))
-    return np.frombuffer(rng.bytes(2 * n), dtype="<u2").reshape(shape)
+    return rng.bit_generator.random_raw(-(-n // 4)).view(np.uint16)[:n].reshape(shape)
 
 
 @lru_cache(maxsize=64)
 def _dark_dn_table(cfg: CameraConfig, dark_e: float, max_dn: int) -> np.ndarray:
     """DN of a pixel without scene signal for each of the 65536 normal codes (the same arithmetic as with signal)."""
-    table = _digitise(np.zeros(65536, np.float32), np.arange(65536, dtype=np.uint16), cfg, dark_e, max_dn)
+    table = _digitise(
+        np.zeros((256, 256), np.float32), np.arange(65536, dtype=np.uint16).reshape(256, 256), cfg, dark_e, max_dn
+    ).reshape(-1)
     table.setflags(write=False)
     return table
 
@@ -823,16 +848,60 @@ def hot_pixels(seed: int, count: int, size: int, signal_e: float) -> tuple[np.nd
     return idx, level
 
 
+_SCRATCH = threading.local()  # per-thread float32 work buffers: fresh multi-MB arrays cost page faults every frame
+
+
+def _scratch(name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """A reusable float32 work array of ``shape`` (contents undefined), private to this thread and ``name``."""
+    n = int(np.prod(shape))
+    buf = getattr(_SCRATCH, name, None)
+    if buf is None or buf.size < n:
+        buf = np.empty(max(n, 1), dtype=np.float32)
+        setattr(_SCRATCH, name, buf)
+    return buf[:n].reshape(shape)
+
+
 def _digitise(
     signal_e: np.ndarray, codes: np.ndarray, cfg: CameraConfig, dark_e: float, max_dn: int
 ) -> np.ndarray:
-    """DN of pixels holding ``signal_e`` scene electrons, with their own normal codes."""
-    s = np.maximum(signal_e.astype(np.float32), 0.0)
-    var = s + np.float32(dark_e + cfg.read_noise_e**2)
-    dn = np.float32(cfg.dark_offset_dn + dark_e / cfg.gain_e_per_dn) + (
-        s + np.sqrt(var) * NORMAL_QUANTILES[codes]
-    ) * np.float32(1.0 / cfg.gain_e_per_dn)
-    return np.clip(np.rint(dn), 0, max_dn).astype(np.uint16)
+    """DN (uint16, same shape) of pixels holding ``signal_e`` scene electrons (float32), with their own normal codes.
+
+    ``offset + dark/g + (s + sqrt(s + dark + read^2) z) / g`` with s clamped at 0, rounded to nearest (ties to even)
+    and clipped to [0, max_dn]; OpenCV element-wise kernels on one thread (1-D inputs are handled as one row).
+    ``signal_e`` is clamped at 0 in place.
+    """
+    shape = signal_e.shape
+    s = signal_e.reshape(1, -1) if signal_e.ndim == 1 else signal_e
+    c = codes.reshape(1, -1) if codes.ndim == 1 else codes
+    cv2.max(s, 0.0, dst=s)
+    noise = _scratch("noise", s.shape)
+    np.take(NORMAL_QUANTILES, c, out=noise, mode="wrap")  # 16-bit codes never wrap; 'raise' would buffer `out`
+    sd = _scratch("sd", s.shape)
+    cv2.add(s, float(dark_e + cfg.read_noise_e**2), dst=sd)
+    cv2.sqrt(sd, dst=sd)
+    cv2.multiply(sd, noise, dst=noise)
+    inv_g = 1.0 / cfg.gain_e_per_dn
+    dn = cv2.addWeighted(s, inv_g, noise, inv_g, cfg.dark_offset_dn + dark_e * inv_g, dtype=cv2.CV_16U)
+    cv2.min(dn, float(max_dn), dst=dn)
+    return dn.reshape(shape)
+
+
+def _merged_boxes(boxes: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:
+    """Bounding boxes of the groups of overlapping boxes (r0, r1, c0, c1): every pixel is digitised once."""
+    out: list[tuple[int, int, int, int]] = []
+    for b in boxes:
+        merged = b
+        changed = True
+        while changed:
+            changed = False
+            for a in out:
+                if a[0] < merged[1] and merged[0] < a[1] and a[2] < merged[3] and merged[2] < a[3]:
+                    out.remove(a)
+                    merged = (min(a[0], merged[0]), max(a[1], merged[1]), min(a[2], merged[2]), max(a[3], merged[3]))
+                    changed = True
+                    break
+        out.append(merged)
+    return out
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -845,84 +914,111 @@ def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.ra
     max_dn = (1 << cfg.bit_depth) - 1
     if scene.saturated:
         return np.full((size, size), max_dn, dtype=np.uint16)
+    signal, boxes, star_flat = _scene_electrons(scene, cfg, plume)
+    hot_idx, hot_e = hot_pixels(cfg.hot_pixel_seed, cfg.hot_pixel_count, size, cfg.hot_pixel_signal_e)
+    flat_signal = signal.reshape(-1)
+    flat_signal[hot_idx] += hot_e.astype(np.float32)
+
+    dark_e = cfg.dark_current_e_s * scene.exposure_s
+    codes = normal_codes(rng, (size, size))
+    regions = _merged_boxes(boxes)
+    if sum((r1 - r0) * (c1 - c0) for r0, r1, c0, c1 in regions) > _FULL_FRAME_FRACTION * size * size:
+        return _digitise(signal, codes, cfg, dark_e, max_dn)  # mostly lit: one pass over the whole frame
+    frame = np.take(_dark_dn_table(cfg, dark_e, max_dn), codes, mode="wrap")
+    for r0, r1, c0, c1 in regions:
+        frame[r0:r1, c0:c1] = _digitise(signal[r0:r1, c0:c1], codes[r0:r1, c0:c1], cfg, dark_e, max_dn)
+    points = np.concatenate([star_flat, hot_idx])
+    if points.size:
+        frame.reshape(-1)[points] = _digitise(flat_signal[points], codes.reshape(-1)[points], cfg, dark_e, max_dn)
+    return frame
+
+
+def scene_electrons(scene: Scene, cfg: CameraConfig, plume: PlumeConfig) -> np.ndarray:
+    """Expected scene electrons per pixel in the exposure, (H, W) float32: bodies, plume and stars through the
+    optics and smear; without dark current, hot pixels or noise (zero for a blank or saturated frame)."""
+    if scene.saturated:
+        return np.zeros((cfg.resolution_px,) * 2, dtype=np.float32)
+    return _scene_electrons(scene, cfg, plume)[0].copy()
+
+
+def _scene_electrons(
+    scene: Scene, cfg: CameraConfig, plume: PlumeConfig
+) -> tuple[np.ndarray, list[tuple[int, int, int, int]], np.ndarray]:
+    """Scene electrons (H, W) float32, the boxes (r0, r1, c0, c1) holding bodies and plume, the stars' flat pixels."""
+    size = cfg.resolution_px
+    signal = _scratch("signal", (size, size))
+    signal.fill(0.0)
+    boxes: list[tuple[int, int, int, int]] = []
+    if scene.blank:
+        return signal, boxes, np.empty(0, dtype=np.int64)
     f = focal_length_px(cfg)
     cx, cy = principal_point_px(cfg)
     c2i = camera_to_inertial_matrix(scene, cfg)
     texp = scene.exposure_s
     omega_c = c2i.T @ (Rotation.from_quat(scene.q_body_to_inertial).apply(scene.body_rate_rad_s))
-    signal = np.zeros((size, size), dtype=np.float32)  # scene electrons; only touched where light falls
-    boxes: list[tuple[int, int, int, int]] = []
     occluders: list[tuple[tuple[int, int, int, int], np.ndarray]] = []
-
-    if not scene.blank:
-        sun_c = c2i.T @ scene.sun_direction
-        vel_c = c2i.T @ (-scene.camera_velocity_m_s)
-        views: list[_BodyView] = []
-        for i, body in enumerate(scene.bodies):
-            centre_c = c2i.T @ (body.centre_inertial_m - scene.camera_position_m)
-            dv = -np.cross(omega_c, centre_c) + vel_c
-            smear = _image_velocity_px_s(centre_c, dv, f) * texp if centre_c[2] > 0 else np.zeros(2)
-            margin = psf_half_size_px(cfg.psf_sigma_px, float(np.hypot(*smear)))
-            r_max = body.radius_m * body.shape.max_radius()
-            box = _body_box(centre_c, r_max, f, cx, cy, size, margin)
-            if box is not None:
-                views.append(_BodyView(i, body, centre_c, r_max, box, (float(smear[0]), float(smear[1]))))
-        for cluster in _clusters(views):
-            r0, r1, c0, c1 = cluster.box
-            h, w = r1 - r0, c1 - c0
-            depth = np.full(h * w, np.inf)
-            rad = np.zeros(h * w, dtype=np.float32)
-            for v in cluster.members:
-                vr0, vr1, vc0, vc1 = v.box
-                flat, dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy)
-                rr = flat // (vc1 - vc0) + (vr0 - r0)
-                cc = flat % (vc1 - vc0) + (vc0 - c0)
-                k = rr * w + cc
-                nearer = np.flatnonzero(dep < depth[k])
-                depth[k[nearer]] = dep[nearer]
-                rad[k[nearer]] = sig[nearer]
-            hit = np.isfinite(depth).reshape(h, w)
-            if not hit.any():
+    sun_c = c2i.T @ scene.sun_direction
+    vel_c = c2i.T @ (-scene.camera_velocity_m_s)
+    views: list[_BodyView] = []
+    for i, body in enumerate(scene.bodies):
+        centre_c = c2i.T @ (body.centre_inertial_m - scene.camera_position_m)
+        dv = -np.cross(omega_c, centre_c) + vel_c
+        smear = _image_velocity_px_s(centre_c, dv, f) * texp if centre_c[2] > 0 else np.zeros(2)
+        margin = psf_half_size_px(cfg.psf_sigma_px, float(np.hypot(*smear)))
+        r_max = body.radius_m * body.shape.max_radius()
+        box = _body_box(centre_c, r_max, f, cx, cy, size, margin)
+        if box is not None:
+            views.append(_BodyView(i, body, centre_c, r_max, box, (float(smear[0]), float(smear[1]))))
+    for cluster in _clusters(views):
+        r0, r1, c0, c1 = cluster.box
+        h, w = r1 - r0, c1 - c0
+        depth: np.ndarray | None = None
+        for v in cluster.members:
+            vr0, vr1, vc0, vc1 = v.box
+            dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy)
+            if depth is None and v.box == cluster.box:
+                depth, rad = dep, sig
                 continue
-            occluders.append((cluster.box, hit))
-            smear = cluster.members[0].smear_px
-            kernel = psf_kernel(cfg.psf_sigma_px, smear)
-            m = kernel.shape[0] // 2
-            cut = np.zeros((h + 2 * m, w + 2 * m), dtype=np.float32)
-            cut[m : m + h, m : m + w] = rad.reshape(h, w) * np.float32(texp)
-            cut = cv2.filter2D(cut, -1, kernel, borderType=cv2.BORDER_CONSTANT)
-            fr0, fr1 = max(0, r0 - m), min(size, r1 + m)
-            fc0, fc1 = max(0, c0 - m), min(size, c1 + m)
-            if fr0 < fr1 and fc0 < fc1:
-                signal[fr0:fr1, fc0:fc1] += cut[fr0 - r0 + m : fr1 - r0 + m, fc0 - c0 + m : fc1 - c0 + m]
-                boxes.append((fr0, fr1, fc0, fc1))
+            if depth is None:
+                depth = np.full((h, w), np.inf, dtype=np.float32)
+                rad = np.zeros((h, w), dtype=np.float32)
+            win = (slice(vr0 - r0, vr1 - r0), slice(vc0 - c0, vc1 - c0))
+            nearer = dep < depth[win]
+            depth[win] = np.where(nearer, dep, depth[win])
+            rad[win] = np.where(nearer, sig, rad[win])
+        hit = np.isfinite(depth)
+        if not hit.any():
+            continue
+        occluders.append((cluster.box, hit))
+        m, cut = _blurred(rad * np.float32(texp), cfg.psf_sigma_px, cluster.members[0].smear_px)
+        fr0, fr1 = max(0, r0 - m), min(size, r1 + m)
+        fc0, fc1 = max(0, c0 - m), min(size, c1 + m)
+        if fr0 < fr1 and fc0 < fc1:
+            signal[fr0:fr1, fc0:fc1] += cut[fr0 - r0 + m : fr1 - r0 + m, fc0 - c0 + m : fc1 - c0 + m]
+            boxes.append((fr0, fr1, fc0, fc1))
 
-        pl = _plume_signal(scene, cfg, plume, c2i, f, cx, cy)
-        if pl is not None:
-            (pr0, pr1, pc0, pc1), fine = pl
-            signal[pr0:pr1, pc0:pc1] += fine * np.float32(texp)
-            boxes.append((pr0, pr1, pc0, pc1))
+    pl = _plume_signal(scene, cfg, plume, c2i, f, cx, cy)
+    if pl is not None:
+        (pr0, pr1, pc0, pc1), fine = pl
+        signal[pr0:pr1, pc0:pc1] += fine * np.float32(texp)
+        boxes.append((pr0, pr1, pc0, pc1))
 
-        star_flat = _add_stars(scene, cfg, c2i, omega_c, f, cx, cy, signal, occluders)
-    else:
-        star_flat = np.empty(0, dtype=np.int64)
+    star_flat = _add_stars(scene, cfg, c2i, omega_c, f, cx, cy, signal, occluders)
+    return signal, boxes, star_flat
 
-    hot_idx, hot_e = hot_pixels(cfg.hot_pixel_seed, cfg.hot_pixel_count, size, cfg.hot_pixel_signal_e)
-    flat_signal = signal.reshape(-1)
-    flat_signal[hot_idx] += hot_e.astype(np.float32)
 
-    dark_e = cfg.dark_current_e_s * texp
-    codes = normal_codes(rng, (size, size))
-    table = _dark_dn_table(cfg, dark_e, max_dn)
-    frame = np.take(table, codes)
-    for r0, r1, c0, c1 in boxes:
-        frame[r0:r1, c0:c1] = _digitise(signal[r0:r1, c0:c1], codes[r0:r1, c0:c1], cfg, dark_e, max_dn)
-    points = np.concatenate([star_flat, hot_idx])
-    if points.size:
-        flat_frame = frame.reshape(-1)
-        flat_codes = codes.reshape(-1)
-        flat_frame[points] = _digitise(flat_signal[points], flat_codes[points], cfg, dark_e, max_dn)
-    return frame
+def _blurred(image: np.ndarray, sigma_px: float, smear_px: tuple[float, float]) -> tuple[int, np.ndarray]:
+    """``image`` convolved with the smeared PSF over itself grown by the kernel's half-size m: (m, result).
+
+    Without smear the kernel is a Gaussian, exactly separable: two 1-D passes instead of one 2-D pass.
+    """
+    kernel = psf_kernel(sigma_px, smear_px)
+    m = kernel.shape[0] // 2
+    padded = cv2.copyMakeBorder(image, m, m, m, m, cv2.BORDER_CONSTANT, value=0.0)
+    if math.hypot(*smear_px) <= _POINT_SMEAR_PX:
+        g = kernel.sum(axis=0)  # the 1-D Gaussian: the 2-D kernel is its outer product
+        return m, cv2.sepFilter2D(padded, -1, g, g, borderType=cv2.BORDER_CONSTANT)
+    return m, cv2.filter2D(padded, -1, kernel, borderType=cv2.BORDER_CONSTANT)
 
 
 def _add_stars(
@@ -955,8 +1051,10 @@ def _add_stars(
     col = cx + f * v[:, 0] / v[:, 2]
     row = cy + f * v[:, 1] / v[:, 2]
     smear = _image_velocity_px_s(v, -np.cross(omega_c, v), f) * scene.exposure_s
-    hs = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.hypot(smear[:, 0], smear[:, 1]), initial=0.0)))
-    keep = (col > -hs) & (col < size - 1 + hs) & (row > -hs) & (row < size - 1 + hs)
+    # stamps cut at 3.5 sigma beyond half the smear along each image axis (a rectangle along a streak)
+    hx = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.abs(smear[:, 0]), initial=0.0)))
+    hy = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.abs(smear[:, 1]), initial=0.0)))
+    keep = (col > -hx) & (col < size - 1 + hx) & (row > -hy) & (row < size - 1 + hy)
     ic = np.rint(col).astype(np.int64)
     ir = np.rint(row).astype(np.int64)
     for (r0, r1, c0, c1), hit in occluders:
@@ -966,18 +1064,24 @@ def _add_stars(
     if not keep.any():
         return np.empty(0, dtype=np.int64)
     col, row, ic, ir, mag, smear = col[keep], row[keep], ic[keep], ir[keep], mag[keep], smear[keep]
-    o = np.arange(-hs, hs + 1)
-    pc = ic[:, None, None] + o[None, None, :]
-    pr = ir[:, None, None] + o[None, :, None]
+    ox = np.arange(-hx, hx + 1)
+    oy = np.arange(-hy, hy + 1)
+    pc = ic[:, None, None] + ox[None, None, :]
+    pr = ir[:, None, None] + oy[None, :, None]
+    sm = smear.astype(np.float32)
     stamp = smeared_psf(
-        pc - col[:, None, None], pr - row[:, None, None], cfg.psf_sigma_px, smear[:, 0, None, None], smear[:, 1, None, None]
+        (pc - col[:, None, None]).astype(np.float32),
+        (pr - row[:, None, None]).astype(np.float32),
+        cfg.psf_sigma_px,
+        sm[:, 0, None, None],
+        sm[:, 1, None, None],
     )
-    flux_e = cfg.star_mag0_e_s * 10.0 ** (-0.4 * mag) * scene.exposure_s
+    flux_e = (cfg.star_mag0_e_s * 10.0 ** (-0.4 * mag) * scene.exposure_s).astype(np.float32)
     stamp *= (flux_e / stamp.sum(axis=(1, 2)))[:, None, None]
     pr, pc = np.broadcast_arrays(pr, pc)
     ok = (pr >= 0) & (pr < size) & (pc >= 0) & (pc < size)
-    flat = (pr[ok] * size + pc[ok]).astype(np.int64)
-    np.add.at(signal.reshape(-1), flat, stamp[ok].astype(np.float32))
+    flat = pr[ok] * size + pc[ok]
+    np.add.at(signal.reshape(-1), flat, stamp[ok])
     return flat
 
 
