@@ -118,6 +118,7 @@ class EventId(IntEnum):
     WHEEL_SATURATION = 4
     FAULT = 5
     COMMAND_REJECTED = 6
+    CLOCK_JUMP = 7
 
 
 class FailureCode(IntEnum):
@@ -679,6 +680,23 @@ class FaultEvent(EventReport):
         return _built(cls, cls.__name__, severity=subservice, fault_code=code, reason=r.text("reason"))
 
 
+class ClockJumpEvent(EventReport):
+    """On-board time stepped between two control periods by more than the jump threshold."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.CLOCK_JUMP
+    severity: Severity = Severity.MEDIUM
+    step_s: Finite = Field(description="OBT step beyond the control period, s (negative: backwards)")
+
+    def parameters(self) -> bytes:
+        """f64 step."""
+        return struct.pack(">d", self.step_s)
+
+    @classmethod
+    def from_app_data(cls, subservice: int, r: _Reader) -> Self:
+        """Parse the step."""
+        return _built(cls, cls.__name__, severity=subservice, step_s=r.one("d", "step_s"))
+
+
 class CommandRejectedEvent(EventReport):
     """A TC was rejected (its service 1 failure report carries the reason text)."""
 
@@ -1232,6 +1250,7 @@ TcCommand: TypeAlias = (
 )
 Event: TypeAlias = (
     ModeChangedEvent | TargetAcquiredEvent | TargetLostEvent | WheelSaturationEvent | FaultEvent | CommandRejectedEvent
+    | ClockJumpEvent
 )
 TmReport: TypeAlias = (
     PingReply
@@ -1285,6 +1304,7 @@ _EVENT_TYPES: dict[int, type[EventReport]] = {
         WheelSaturationEvent,
         FaultEvent,
         CommandRejectedEvent,
+        ClockJumpEvent,
     )
 }
 

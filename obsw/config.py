@@ -236,6 +236,10 @@ class ObswConfig(Frozen):
 
     housekeeping_period_s: float = Field(1.0, gt=0, description="PUS service 3 housekeeping period, OBT s")
     control_period_s: float = Field(0.1, gt=0, description="nominal control period, OBT s (DESIGN: 10 Hz)")
+    clock_jump_threshold_s: float = Field(
+        0.05, gt=0, description="an OBT step this far from the control period between two periods is reported as a "
+        "clock jump, s (well above oscillator drift and jitter: 20 ppm is 2 us per period)"
+    )
     schedule_capacity: int = Field(256, ge=1, description="PUS service 11 time-based schedule capacity, entries")
     schedule_margin_s: float = Field(
         1.0, ge=0, description="a scheduled command must be tagged at least this far after now, OBT s"

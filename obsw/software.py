@@ -91,6 +91,7 @@ class FlightSoftware:
         self._wheel_saturated = False
         self._log: list[str] = []
         self._tm: list[bytes] = []
+        self._prev_obt: float | None = None
         self.last_reference: Reference | None = None
         self.pointing_error_est_rad: float | None = None
 
@@ -111,6 +112,10 @@ class FlightSoftware:
         # the loops advance by the control period, not by OBT differences: a clock jump is not a long period
         dt = self.cfg.control_period_s
         self._tm = []
+        if self._prev_obt is not None and abs(obt - self._prev_obt - dt) > self.cfg.clock_jump_threshold_s:
+            jump = obt - self._prev_obt - dt
+            self._event(pus.ClockJumpEvent(step_s=jump), obt, f"on-board time jumped by {jump:+.6f} s")
+        self._prev_obt = obt
         self._time_report(obt)
         for raw in req.uplink:
             self._telecommand(raw, obt, scheduled=False)

@@ -281,3 +281,20 @@ def test_gate_ignores_an_outlier_and_takes_a_lasting_shift() -> None:
                                   extrapolate=False, gate_rad=1e-3)
     assert shifted.rejected_count == release
     assert shifted.correction_rotvec @ LINE.plane_normal == pytest.approx(4e-3, abs=2e-5)
+
+
+@pytest.mark.parametrize("jump_s", [-3.0, -0.2, 0.2, 100.0])
+def test_clock_jump_is_reported_once_with_its_size(jump_s: float) -> None:
+    """An OBT step of the control period plus J between two periods gives one clock-jump event of J; steady
+    periods (with microsecond drift) give none."""
+    fsw = _fsw()
+    events = []
+    obt = OBT0
+    for k in range(6):
+        if k == 3:
+            obt += jump_s
+        reply = fsw.step(_request(k, obt), None)
+        events += _of(_tm(reply.downlink), pus.ClockJumpEvent)
+        obt += DT * (1 + 20e-6)
+    assert len(events) == 1
+    assert events[0].step_s == pytest.approx(jump_s, abs=1e-5)
