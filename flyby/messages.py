@@ -70,6 +70,7 @@ class StepReply(Message):
     wheel_torque_nm: tuple[float, ...]
     frame_request: FrameRequest | None = None
     downlink: tuple[bytes, ...] = Field(default=(), description="telemetry packets sent this period")
+    clock_adjust_s: float | None = Field(None, description="commanded step of the on-board clock, from next period")
 
 
 class TruthRecord(Frozen):

@@ -1108,6 +1108,23 @@ class StopImaging(_Payload):
     SUBSERVICE: ClassVar[int] = 5
 
 
+class AdjustObt(_Payload):
+    """TC[200,7] step the on-board clock by ``delta_s`` (a commanded time correction; reported as a clock jump)."""
+
+    SERVICE: ClassVar[int] = MISSION_SERVICE
+    SUBSERVICE: ClassVar[int] = 7
+    delta_s: Finite = Field(ge=-86400.0, le=86400.0, description="OBT step, s (negative: backwards)")
+
+    def app_data(self) -> bytes:
+        """f64 step."""
+        return struct.pack(">d", self.delta_s)
+
+    @classmethod
+    def from_app_data(cls, subservice: int, r: _Reader) -> Self:
+        """Parse the step."""
+        return _built(cls, cls.__name__, delta_s=r.one("d", "delta_s"))
+
+
 class RequestTimeReports(_Payload):
     """TC[200,6] send ``count`` service 9 time reports, one per second, for ground time correlation."""
 
@@ -1247,6 +1264,7 @@ TcCommand: TypeAlias = (
     | StartImaging
     | StopImaging
     | RequestTimeReports
+    | AdjustObt
 )
 Event: TypeAlias = (
     ModeChangedEvent | TargetAcquiredEvent | TargetLostEvent | WheelSaturationEvent | FaultEvent | CommandRejectedEvent
@@ -1284,6 +1302,7 @@ _TC_TYPES: dict[tuple[int, int], type[_Payload]] = {
     (MISSION_SERVICE, 4): StartImaging,
     (MISSION_SERVICE, 5): StopImaging,
     (MISSION_SERVICE, 6): RequestTimeReports,
+    (MISSION_SERVICE, 7): AdjustObt,
 }
 _TM_TYPES: dict[tuple[int, int], type[_Payload]] = {
     (17, 2): PingReply,

@@ -26,6 +26,8 @@ def telecommand_of(command: Command, nominal: pus.UploadNominalTrajectory | None
             return pus.StopImaging()
         case "set_camera_cadence":
             return pus.SetCameraCadence(period_s=a["period_s"], exposure_s=a["exposure_s"])
+        case "adjust_obt":
+            return pus.AdjustObt(delta_s=a["delta_s"])
         case "report_time":
             return pus.RequestTimeReports(count=a.get("count", 1))
         case "upload_nominal_trajectory":

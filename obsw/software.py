@@ -92,6 +92,7 @@ class FlightSoftware:
         self._log: list[str] = []
         self._tm: list[bytes] = []
         self._prev_obt: float | None = None
+        self._clock_adjust_s: float | None = None
         self.last_reference: Reference | None = None
         self.pointing_error_est_rad: float | None = None
 
@@ -129,7 +130,8 @@ class FlightSoftware:
         torque = self._control(obt, dt, q, omega, wheel_h, seen)
         frame_request = self._frame_request(obt)
         self._periodic_tm(obt, q, omega, wheel_speed, wheel_h)
-        return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in torque),
+        adjust, self._clock_adjust_s = self._clock_adjust_s, None
+        return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in torque), clock_adjust_s=adjust,
                          frame_request=frame_request, downlink=tuple(self._tm))
 
     # -- telemetry -----------------------------------------------------------------------------------------
@@ -198,6 +200,10 @@ class FlightSoftware:
             self._time_report_period = float(2**cmd.rate_exponent)
             self._time_report_next = obt
             self._time_reports_left = -1
+        elif isinstance(cmd, pus.AdjustObt):
+            # the oscillator hardware applies it before the next period; the jump is then seen and reported
+            self._clock_adjust_s = (self._clock_adjust_s or 0.0) + cmd.delta_s
+            self._log.append(f"OBT {obt:.3f} s: commanded clock adjustment of {cmd.delta_s:+.6f} s")
         elif isinstance(cmd, pus.RequestTimeReports):
             self._time_report_period = 1.0
             self._time_report_next = obt

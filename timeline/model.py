@@ -176,6 +176,12 @@ class TimeReportArgs(Frozen):
     count: int = Field(1, ge=1, le=1000, description="number of PUS 9 time reports to send, one per second")
 
 
+class AdjustObtArgs(Frozen):
+    """Arguments of adjust_obt."""
+
+    delta_s: float = Field(ge=-86400.0, le=86400.0, description="step of the on-board clock, s")
+
+
 @dataclass(frozen=True)
 class CommandDefinition:
     """A command name, the schema of its arguments and what it does."""
@@ -267,6 +273,7 @@ STANDARD_COMMANDS: tuple[CommandDefinition, ...] = (
         "upload_nominal_trajectory", NominalTrajectoryArgs, "set the nominal C/A the recognition grid is built on"
     ),
     CommandDefinition("report_time", TimeReportArgs, "send PUS 9 time reports for ground time correlation"),
+    CommandDefinition("adjust_obt", AdjustObtArgs, "step the on-board clock (a commanded time correction)"),
 )
 
 

@@ -174,6 +174,9 @@ class Universe:
         self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s, stuck, failed)
         self.step += 1
         self.t_s = self.cfg.start_s + self.step * self.dt_s
+        if reply.clock_adjust_s:  # the OBSW commanded its oscillator to step, from this period on
+            self.oscillator.jump(self.t_s, reply.clock_adjust_s)
+            self._log.append(f"commanded clock step t={self.t_s:.2f} s: OBT {reply.clock_adjust_s:+.6f} s")
         self._log.extend(self.faults.transitions(self.t_s))
         self._obt_s = self.oscillator.obt_s(self.t_s)
         self._record_truth()

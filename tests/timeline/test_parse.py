@@ -147,7 +147,7 @@ def _yaml_problems(rows: str) -> list[str]:
     [
         (
             "  - {time: CA, command: stop_imaging}\n  - {time: CA, command: fire_thruster}\n",
-            "row 2, field 'command': unknown command 'fire_thruster' (known: report_time, set_camera_cadence,",
+            "row 2, field 'command': unknown command 'fire_thruster' (known: adjust_obt, report_time, set_camera_cadence,",
         ),
         ("  - {time: CA, command: start_imaging, args: {period_s: -1}}\n", "row 1, field 'args.period_s': must be > 0"),
         ("  - {time: CA, command: start_imaging, args: {period_s: fast}}\n",
