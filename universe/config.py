@@ -357,3 +357,22 @@ class UniverseConfig(Frozen):
             raise ValueError("must be after start_s")
         return v
 
+    @field_validator("faults")
+    @classmethod
+    def _faults_complete(cls, faults: list[FaultConfig], info) -> list[FaultConfig]:  # type: ignore[no-untyped-def]
+        """Refuse at load time what would otherwise do nothing or fail mid-run."""
+        sc = info.data.get("spacecraft")
+        n_wheels = 3 if sc is None or sc.wheels.layout == "orthogonal" else 4
+        problems = []
+        for i, f in enumerate(faults):
+            if f.kind in ("wheel_stuck", "wheel_failed"):
+                if f.wheel is None:
+                    problems.append(f"[{i}].wheel: a {f.kind} fault needs the wheel index")
+                elif f.wheel >= n_wheels:
+                    problems.append(f"[{i}].wheel: {f.wheel} is not one of the {n_wheels} wheels (0..{n_wheels - 1})")
+            if f.kind in ("gyro_bias_step", "clock_jump") and f.magnitude is None:
+                problems.append(f"[{i}].magnitude: a {f.kind} fault needs its magnitude")
+        if problems:
+            raise ValueError("; ".join(problems))
+        return faults
+

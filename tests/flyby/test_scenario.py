@@ -48,3 +48,20 @@ def test_missing_file_is_a_scenario_error(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError) as err:
         load_scenario(tmp_path / "nope.yaml")
     assert "cannot read" in err.value.problems[0]
+
+
+def test_incomplete_faults_are_refused_at_load() -> None:
+    """A wheel fault without a valid wheel, or a bias step without its size, is an error naming the fault."""
+    with pytest.raises(ScenarioError) as err:
+        scenario_from_dict({"name": "x", "universe": {"faults": [
+            {"kind": "wheel_stuck", "start_s": 0, "end_s": 1},
+            {"kind": "wheel_failed", "start_s": 0, "end_s": 1, "wheel": 3},
+            {"kind": "gyro_bias_step", "start_s": 0, "end_s": 1},
+        ]}})
+    (line,) = err.value.problems
+    assert line.startswith("universe.faults: [0].wheel: a wheel_stuck fault needs the wheel index")
+    assert "[1].wheel: 3 is not one of the 3 wheels (0..2)" in line
+    assert "[2].magnitude: a gyro_bias_step fault needs its magnitude" in line
+    pyramid = {"spacecraft": {"wheels": {"layout": "pyramid"}},
+               "faults": [{"kind": "wheel_failed", "start_s": 0, "end_s": 1, "wheel": 3}]}
+    assert scenario_from_dict({"name": "x", "universe": pyramid}).universe.faults[0].wheel == 3
