@@ -223,6 +223,14 @@ class ImagingConfig(Frozen):
         description="a blob is diffuse when more than this fraction of its pixels is below half its 95th-percentile "
         "level above background (lit bodies, even crescents at 135 deg phase: < 0.3; the rendered plume: > 0.45)",
     )
+    core_peak_fraction: float = Field(
+        0.75,
+        gt=0,
+        le=1,
+        description="a blob's core is its pixels at or above background + this fraction of its peak above background "
+        "(dimensionless; half maximum, the usual full-width-at-half-maximum cut: a lit body keeps most of its "
+        "pixels, the diffuse ejecta around Dimorphos few)",
+    )
     centroid_noise_px: float = Field(
         2.0,
         ge=0,

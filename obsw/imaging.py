@@ -48,12 +48,14 @@ class Blob:
 
     label: int  # 1-based, raster order of the region's first pixel (OpenCV numbering)
     area_px: int
-    centroid_col_row: tuple[float, float]  # binary centroid, px at the binned scale
+    centroid_col_row: tuple[float, float]  # binary centroid of the core (the body's position), px at binned scale
     bbox_col_row_w_h: tuple[int, int, int, int]  # left column, top row, width, height, px
     mean_dn8: float  # mean 8-bit brightness of the region's pixels
     peak_dn8: int
     elongation: float  # major/minor axis ratio from the second central moments (1 for a disc)
     threshold_dn8: int  # the region is the 8-connected set of pixels above this 8-bit value
+    core_area_px: int  # pixels of the region at or above its core level (see core_level_dn8)
+    region_centroid_col_row: tuple[float, float]  # binary centroid of all the region's pixels, px at binned scale
     split_from: int = 0  # label of the diffuse blob this core was cut out of (0: not split)
 
     @property
@@ -391,8 +393,8 @@ def _relative_jump_px(didymos: Blob, cfg: ImagingConfig) -> float:
 
 
 def _largest(blobs: list[Blob]) -> Blob:
-    """Return the blob of largest area, the brighter peak breaking ties."""
-    return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
+    """Return the blob of largest core area, the larger region then the brighter peak breaking ties."""
+    return max(blobs, key=lambda b: (b.core_area_px, b.area_px, b.peak_dn8, -b.label))
 
 
 def identify_bodies(
@@ -458,17 +460,32 @@ def identify_bodies(
     return didymos, (_largest(sized) if sized else None)
 
 
+def core_level_dn8(peak_dn8: np.ndarray, background_dn8: int, fraction: float) -> np.ndarray:
+    """Return the core level of each region: background + ceil(fraction x (peak - background)), 8-bit DN.
+
+    A lit surface is nearly uniform, so most of a body's pixels reach it; the diffuse ejecta fade away from
+    their source, so few of theirs do, and a body's core is the body without the dust around it.
+    """
+    above = np.maximum(np.asarray(peak_dn8, dtype=np.int64) - background_dn8, 0)
+    return background_dn8 + np.ceil(fraction * above - 1e-9).astype(np.int64)
+
+
 def blobs_of(
     components: Components,
     values8: np.ndarray,
     threshold_dn8: int,
+    background_dn8: int,
+    width: int,
+    cfg: ImagingConfig,
     first_label: int = 1,
     offset_col_row: tuple[int, int] = (0, 0),
     split_from: int = 0,
 ) -> list[Blob]:
     """Return the Blob records of labelled components, with brightness from the 8-bit foreground pixel values.
 
-    Labels run from ``first_label``; ``offset_col_row`` shifts coordinates of components found in a crop.
+    ``width`` is the width of the labelled image; labels run from ``first_label``; ``offset_col_row`` shifts
+    coordinates of components found in a crop. Each region's core is the set of its pixels at or above its
+    ``core_level_dn8`` (``cfg.core_peak_fraction``).
     """
     k = components.area_px.size
     if k == 0:
@@ -477,20 +494,29 @@ def blobs_of(
     mean = np.bincount(comp, weights=values8, minlength=k) / components.area_px
     peak = np.zeros(k, dtype=np.int64)
     np.maximum.at(peak, comp, values8)
+    level = core_level_dn8(peak, background_dn8, cfg.core_peak_fraction)
+    in_core = np.flatnonzero(values8 >= level[comp])
+    core_comp = comp[in_core]
+    core_row, core_col = np.divmod(components.pixel_index[in_core], width)
+    core_area = np.bincount(core_comp, minlength=k)
+    core_c = np.bincount(core_comp, weights=core_col, minlength=k) / core_area
+    core_r = np.bincount(core_comp, weights=core_row, minlength=k) / core_area
     dx, dy = offset_col_row
     return [
         Blob(
             label=first_label + i,
             area_px=area,
-            centroid_col_row=(c + dx, r + dy),
+            centroid_col_row=(cc + dx, cr + dy),
             bbox_col_row_w_h=(x + dx, y + dy, w, h),
             mean_dn8=m,
             peak_dn8=p,
             elongation=e,
             threshold_dn8=threshold_dn8,
+            core_area_px=ca,
+            region_centroid_col_row=(c + dx, r + dy),
             split_from=split_from,
         )
-        for i, (area, c, r, x, y, w, h, m, p, e) in enumerate(
+        for i, (area, c, r, x, y, w, h, m, p, e, ca, cc, cr) in enumerate(
             zip(
                 components.area_px.tolist(),
                 components.centroid_col.tolist(),
@@ -502,6 +528,9 @@ def blobs_of(
                 mean.tolist(),
                 peak.tolist(),
                 components.elongation.tolist(),
+                core_area.tolist(),
+                core_c.tolist(),
+                core_r.tolist(),
                 strict=True,
             )
         )
@@ -550,7 +579,9 @@ def split_diffuse_blobs(
         crop_mask = np.zeros((h, w), dtype=bool)
         crop_mask[rows - top, cols - left] = True
         sub = connected_components(crop_mask)
-        cores = blobs_of(sub, crop_vals.ravel()[sub.pixel_index], t2, next_label, (left, top), i + 1)
+        cores = blobs_of(
+            sub, crop_vals.ravel()[sub.pixel_index], t2, background_dn8, w, cfg, next_label, (left, top), i + 1
+        )
         next_label += len(cores)
         out.extend(cores)
         replaced.add(i + 1)
@@ -570,7 +601,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     components = connected_components(image >= first_above)
     values8 = lut[image.ravel()[components.pixel_index]]
     blobs = split_diffuse_blobs(
-        blobs_of(components, values8, thr.threshold_dn8), components, values8, thr.background_dn8, n, cfg
+        blobs_of(components, values8, thr.threshold_dn8, thr.background_dn8, n, cfg), components, values8, thr.background_dn8, n, cfg
     )
     didymos, dimorphos = identify_bodies(blobs, cfg, previous)
     centre = 0.5 * (n - 1)

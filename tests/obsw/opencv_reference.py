@@ -2,7 +2,8 @@
 
 The reference follows the same definitions as obsw.imaging with OpenCV doing the work: cv2.resize INTER_AREA
 binning, cv2.sqrt companding, cv2.calcHist and cv2.threshold(THRESH_OTSU) for the threshold, and
-cv2.connectedComponentsWithStats (8-connectivity) for the blobs.
+cv2.connectedComponentsWithStats (8-connectivity) for the blobs, and per blob cv2.minMaxLoc (peak) and cv2.moments
+of its pixels at or above its core level (background + ceil(fraction x (peak - background))) for its core.
 """
 
 from __future__ import annotations
@@ -27,6 +28,8 @@ class ReferenceResult:
     areas: np.ndarray  # (K,) int, background excluded
     centroids: np.ndarray  # (K, 2) col, row
     bboxes: np.ndarray  # (K, 4) left, top, width, height
+    core_areas: np.ndarray  # (K,) int, pixels of each blob at or above its core level
+    core_centroids: np.ndarray  # (K, 2) col, row of those pixels
 
 
 def reference_binned(frame: np.ndarray, size_px: int) -> np.ndarray:
@@ -58,6 +61,25 @@ def reference_threshold(image8: np.ndarray, k_sigma: float, margin_dn8: int) -> 
     return int(max(otsu, floor)), int(otsu), median
 
 
+def reference_cores(
+    labels: np.ndarray, stats: np.ndarray, image8: np.ndarray, median: int, fraction: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Return (core areas, core centroids col/row) of the labelled blobs 1..K, each in its bounding box."""
+    areas = np.zeros(len(stats) - 1, dtype=np.int64)
+    cents = np.zeros((len(stats) - 1, 2))
+    for k in range(1, len(stats)):
+        x, y, w, h = (int(v) for v in stats[k, :4])
+        inside = (labels[y : y + h, x : x + w] == k).astype(np.uint8)
+        values = image8[y : y + h, x : x + w]
+        peak = cv2.minMaxLoc(values, mask=inside)[1]
+        level = median + math.ceil(fraction * max(peak - median, 0.0) - 1e-9)
+        core = cv2.bitwise_and(inside, (values >= level).astype(np.uint8))
+        m = cv2.moments(core, binaryImage=True)
+        areas[k - 1] = int(m["m00"])
+        cents[k - 1] = (x + m["m10"] / m["m00"], y + m["m01"] / m["m00"])
+    return areas, cents
+
+
 def reference_pipeline(
     frame: np.ndarray,
     size_px: int = 512,
@@ -68,6 +90,7 @@ def reference_pipeline(
     plume_min_area_px: int = 50,
     plume_faint_fraction: float = 0.4,
     threshold_dn8: int | None = None,
+    core_peak_fraction: float = 0.75,
 ) -> ReferenceResult:
     """Run the OpenCV pipeline on a raw frame; threshold_dn8 forces the threshold instead of computing it.
 
@@ -84,6 +107,9 @@ def reference_pipeline(
     areas = [stats[1:, cv2.CC_STAT_AREA]]
     cents = [centroids[1:]]
     boxes = [stats[1:, :4]]
+    core_a, core_c = reference_cores(labels, stats, image8, median, core_peak_fraction)
+    core_areas = [core_a]
+    core_cents = [core_c]
     keep = np.ones(len(stats) - 1, dtype=bool)
     for k in np.flatnonzero(stats[1:, cv2.CC_STAT_AREA] >= plume_min_area_px) + 1:
         inside = labels == k
@@ -94,12 +120,16 @@ def reference_pipeline(
             continue
         core_t, _ = cv2.threshold(values.reshape(1, -1), 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
         core = (inside & (image8 > core_t)).astype(np.uint8)
-        _, _, s2, c2 = cv2.connectedComponentsWithStats(core, connectivity=8)
+        _, l2, s2, c2 = cv2.connectedComponentsWithStats(core, connectivity=8)
+        a2, cc2 = reference_cores(l2, s2, image8, median, core_peak_fraction)
+        core_areas.append(a2)
+        core_cents.append(cc2.reshape(-1, 2))
         areas.append(s2[1:, cv2.CC_STAT_AREA])
         cents.append(c2[1:])
         boxes.append(s2[1:, :4])
         keep[k - 1] = False
     areas[0], cents[0], boxes[0] = areas[0][keep], cents[0][keep], boxes[0][keep]
+    core_areas[0], core_cents[0] = core_areas[0][keep], core_cents[0][keep]
     return ReferenceResult(
         binned=binned,
         image8=image8,
@@ -108,6 +138,8 @@ def reference_pipeline(
         areas=np.concatenate(areas).astype(np.int64),
         centroids=np.concatenate(cents),
         bboxes=np.concatenate(boxes).astype(np.int64),
+        core_areas=np.concatenate(core_areas).astype(np.int64),
+        core_centroids=np.concatenate(core_cents).reshape(-1, 2),
     )
 
 

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from scipy.spatial.transform import Rotation
 from tests.obsw.opencv_reference import (
+    ReferenceResult,
     SyntheticBody,
     reference_8bit,
     reference_binned,
@@ -60,6 +61,22 @@ def _ours(mask: np.ndarray) -> np.ndarray:
 def _opencv(mask: np.ndarray) -> np.ndarray:
     _, _, stats, cent = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     return _sorted_stats(stats[1:, 4], cent[1:, 0], cent[1:, 1], stats[1:, :4])
+
+
+def _assert_blobs_equal_reference(det: Detections, ref: ReferenceResult) -> None:
+    """Every blob of ours equals one of OpenCV's: same area, box, region centroid, core area and core centroid."""
+    ours = np.array(
+        [
+            (b.area_px, *b.region_centroid_col_row, *b.bbox_col_row_w_h, b.core_area_px, *b.centroid_col_row)
+            for b in det.blobs
+        ],
+        dtype=np.float64,
+    ).reshape(-1, 10)
+    theirs = np.column_stack(
+        [ref.areas, ref.centroids, ref.bboxes.reshape(-1, 4), ref.core_areas, ref.core_centroids]
+    ).astype(np.float64)
+    assert det.threshold_dn8 == ref.threshold_dn8
+    np.testing.assert_allclose(ours[np.lexsort(ours.T[::-1])], theirs[np.lexsort(theirs.T[::-1])], rtol=0, atol=1e-9)
 
 
 def test_binning_1024_equals_opencv_inter_area() -> None:
@@ -232,15 +249,7 @@ def test_bodies_found_and_centroids_match_opencv(
         plume_axis_deg=math.degrees(math.atan2(rel[1], rel[0])),
     )
     det = process_frame(frame, CFG)
-    ref = reference_pipeline(frame)
-    assert det.threshold_dn8 == ref.threshold_dn8
-    ours = _sorted_stats(
-        np.array([b.area_px for b in det.blobs]),
-        np.array([b.centroid_col_row[0] for b in det.blobs]),
-        np.array([b.centroid_col_row[1] for b in det.blobs]),
-        np.array([b.bbox_col_row_w_h for b in det.blobs]),
-    )
-    np.testing.assert_allclose(ours, _sorted_stats(ref.areas, ref.centroids[:, 0], ref.centroids[:, 1], ref.bboxes))
+    _assert_blobs_equal_reference(det, reference_pipeline(frame))
     assert det.didymos is not None and det.dimorphos is not None
     did_truth, dim_truth = _truth_512(bodies[0]), _truth_512(bodies[1])
     # the lit centroid lies within half a radius of the true centre (phase shifts it sunward)
@@ -309,7 +318,7 @@ def test_bad_frames_raise_frame_error(frame: np.ndarray, message: str) -> None:
 
 def _blob(label: int, col: float, row: float, area: int, diameter: int, peak: int = 200) -> Blob:
     """A compact blob for identification tests."""
-    return Blob(label, area, (col, row), (int(col), int(row), diameter, diameter), 150.0, peak, 1.1, 60)
+    return Blob(label, area, (col, row), (int(col), int(row), diameter, diameter), 150.0, peak, 1.1, 60, area, (col, row))
 
 
 def _detections(didymos: Blob | None, dimorphos: Blob | None) -> Detections:
@@ -350,7 +359,7 @@ def test_stars_far_from_didymos_and_dim_or_elongated_blobs_are_not_dimorphos() -
     did = _blob(1, 256.0, 256.0, 300, 20)
     far = _blob(2, 256.0, 320.0, 12, 4)  # 64 px away, gate is 2 x 20 + 2 px
     dim_faint = _blob(3, 270.0, 256.0, 12, 4, peak=40)
-    ray = Blob(4, 30, (250.0, 270.0), (240, 268, 30, 3), 150.0, 200, 12.0, 60)
+    ray = Blob(4, 30, (250.0, 270.0), (240, 268, 30, 3), 150.0, 200, 12.0, 60, 30, (250.0, 270.0))
     assert identify_bodies([did, far, dim_faint, ray], CFG) == (did, None)
 
 
@@ -420,19 +429,6 @@ def _flyby_run(
         }
         out.append((det, reference_pipeline(frame), truth))
     return out
-
-
-def _assert_blobs_equal_reference(det: Detections, ref) -> None:  # type: ignore[no-untyped-def]
-    """Every blob of ours equals one of OpenCV's: same area, box and centroid."""
-    ours = _sorted_stats(
-        np.array([b.area_px for b in det.blobs]),
-        np.array([b.centroid_col_row[0] for b in det.blobs]),
-        np.array([b.centroid_col_row[1] for b in det.blobs]),
-        np.array([b.bbox_col_row_w_h for b in det.blobs]).reshape(-1, 4),
-    )
-    theirs = _sorted_stats(ref.areas, ref.centroids[:, 0], ref.centroids[:, 1], ref.bboxes.reshape(-1, 4))
-    assert det.threshold_dn8 == ref.threshold_dn8
-    np.testing.assert_allclose(ours, theirs, rtol=0, atol=1e-9)
 
 
 MIN_DIMORPHOS_DIAMETER_PX = 2.0  # at 512: from here on Dimorphos spans enough pixels to be a target (paper: 30-45)
