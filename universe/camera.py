@@ -293,11 +293,18 @@ def _remap_points(table: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarr
     return out.reshape(rows * _REMAP_COLS, table.shape[2])[:n]
 
 
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (np.cross costs ~50 us of argument handling)."""
+    a0, a1, a2 = float(a[0]), float(a[1]), float(a[2])
+    b0, b1, b2 = float(b[0]), float(b[1]), float(b[2])
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def _view_basis(e3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(helper, e3)
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(e3, e1)
+    e1 = _cross3(helper, e3)
+    e1 /= math.sqrt(float(e1 @ e1))
+    return e1, _cross3(e3, e1)
 
 
 @lru_cache(maxsize=16)
@@ -306,7 +313,9 @@ def _stereo_directions(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     g = np.linspace(-_TABLE_S, _TABLE_S, n)
     s1, s2 = np.meshgrid(g, g)
     rho2 = s1 * s1 + s2 * s2
-    out = (2.0 * s1 / (1.0 + rho2), 2.0 * s2 / (1.0 + rho2), (1.0 - rho2) / (1.0 + rho2))
+    out = tuple(
+        a.astype(np.float32) for a in (2.0 * s1 / (1.0 + rho2), 2.0 * s2 / (1.0 + rho2), (1.0 - rho2) / (1.0 + rho2))
+    )
     for a in out:
         a.setflags(write=False)
     return out
@@ -332,6 +341,23 @@ def _limb_radius(table: np.ndarray, dist: float, perimeter_px: float) -> np.ndar
     Bin j is at ``pseudo_angle = 4 j / M``; M gives about one bin per pixel of perimeter.
     """
     m = int(min(4096, max(64, 2 ** math.ceil(math.log2(max(perimeter_px, 1.0))))))
+    mx, my, st, ct = _limb_maps(m, table.shape[0])
+    r = cv2.remap(np.ascontiguousarray(table[..., 0]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    distf = np.float32(dist)
+    proj = distf * r * st / (distf - r * ct)  # (m, samples)
+    k = np.clip(np.argmax(proj, axis=1), 1, len(st) - 2)
+    rows = np.arange(m)
+    y0, y1, y2 = proj[rows, k - 1], proj[rows, k], proj[rows, k + 1]
+    den = y0 - 2 * y1 + y2
+    u = np.where(den < 0, np.float32(0.5) * (y0 - y2) / np.where(den < 0, den, np.float32(-1.0)), np.float32(0.0))
+    limb = y1 - np.float32(0.25) * (y0 - y2) * u
+    return np.append(limb, limb[0])  # closed: bin M is bin 0
+
+
+@lru_cache(maxsize=32)
+def _limb_maps(m: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Table coordinates (m, samples) of the limb search in each of ``m`` pseudo-angle bins of an (n, n) table, and
+    the sine and cosine (samples,) of the searched polar angles, float32."""
     t = 4.0 * np.arange(m) / m
     tx = np.where(t < 2.0, 1.0 - t, t - 3.0)
     ty = np.where(t < 2.0, 1.0 - np.abs(tx), np.abs(tx) - 1.0)
@@ -340,25 +366,19 @@ def _limb_radius(table: np.ndarray, dist: float, perimeter_px: float) -> np.ndar
     th = _LIMB_ANGLES
     st, ct = np.sin(th), np.cos(th)
     s_len = st / (1.0 + ct)  # stereographic radius of each polar angle
-    n = table.shape[0]
     scale = (n - 1) / (2.0 * _TABLE_S)
     mx = ((cos_psi[:, None] * s_len[None, :] + _TABLE_S) * scale).astype(np.float32)
     my = ((sin_psi[:, None] * s_len[None, :] + _TABLE_S) * scale).astype(np.float32)
-    r = cv2.remap(np.ascontiguousarray(table[..., 0]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    proj = dist * r * st / (dist - r * ct)  # (m, samples)
-    k = np.clip(np.argmax(proj, axis=1), 1, len(th) - 2)
-    rows = np.arange(m)
-    y0, y1, y2 = proj[rows, k - 1], proj[rows, k], proj[rows, k + 1]
-    den = y0 - 2.0 * y1 + y2
-    u = np.where(den < 0, 0.5 * (y0 - y2) / np.where(den < 0, den, -1.0), 0.0)
-    limb = (y1 - 0.25 * (y0 - y2) * u).astype(np.float32)
-    return np.append(limb, limb[0])  # closed: bin M is bin 0
+    out = (mx, my, st.astype(np.float32), ct.astype(np.float32))
+    for arr in out:
+        arr.setflags(write=False)
+    return out
 
 
 def _shape_table(body: Body, view_to_ast: np.ndarray, n: int) -> np.ndarray:
     """(n, n, 4) float32 table of radius (m) and view-frame normal over stereographic view coordinates."""
     v1, v2, v3 = _stereo_directions(n)
-    m = view_to_ast
+    m = view_to_ast.astype(np.float32)
     ast = body.shape.lookup(
         m[0, 0] * v1 + m[0, 1] * v2 + m[0, 2] * v3,
         m[1, 0] * v1 + m[1, 1] * v2 + m[1, 2] * v3,
@@ -397,6 +417,22 @@ def _body_box(
     dist = float(np.linalg.norm(centre_c))
     if dist <= r_max:
         raise RenderError(f"camera is inside a body's bounding sphere (range {dist:.1f} m <= {r_max:.1f} m)")
+    lo, hi = -margin, size + margin
+    cx_m, cy_m, cz_m = float(centre_c[0]), float(centre_c[1]), float(centre_c[2])
+    den = cz_m * cz_m - r_max * r_max
+    if cz_m > 0 and den > 1e-6 * dist * dist:
+        # whole sphere in front: tangent planes x - u z = 0 at distance r_max give u = (a c +- r sqrt(a^2 + c^2 - r^2)) / den
+        ru = r_max * math.sqrt(cx_m * cx_m + den)
+        rv = r_max * math.sqrt(cy_m * cy_m + den)
+        u0, u1 = (cx_m * cz_m - ru) / den, (cx_m * cz_m + ru) / den
+        v0, v1 = (cy_m * cz_m - rv) / den, (cy_m * cz_m + rv) / den
+        box = (
+            max(lo, int(math.floor(cy + f * v0)) - 2),
+            min(hi, int(math.ceil(cy + f * v1)) + 3),
+            max(lo, int(math.floor(cx + f * u0)) - 2),
+            min(hi, int(math.ceil(cx + f * u1)) + 3),
+        )
+        return None if box[0] >= box[1] or box[2] >= box[3] else box
     c = centre_c / dist
     beta = math.asin(r_max / dist)
     e1, e2 = _view_basis(c)
@@ -404,7 +440,6 @@ def _body_box(
     rim = c * math.cos(beta) + (np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2) * math.sin(beta)
     if np.all(rim[:, 2] <= 0) and c[2] <= 0:
         return None
-    lo, hi = -margin, size + margin
     if np.any(rim[:, 2] <= 1e-9):
         box = (lo, hi, lo, hi)
     else:
@@ -453,8 +488,13 @@ class _BodyCaster:
         )
         self.wls = np.float32(cfg.lommel_seeliger_weight)
 
-    def cast(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Rays through pixel centres (1-D arrays): indices of those hitting the body, their depth (m), signal (e-/s)."""
+    def cast(
+        self, rows: np.ndarray, cols: np.ndarray, depth_guess: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Rays through pixel centres (1-D arrays): indices of those hitting the body, their depth (m), signal (e-/s).
+
+        ``depth_guess`` (m, NaN for none) starts the intersection of those rays one pixel width in front of it.
+        """
         distf = np.float32(self.dist)
         dx = (cols.astype(np.float32) - np.float32(self.cx)) * np.float32(1.0 / self.f)
         dy = (rows.astype(np.float32) - np.float32(self.cy)) * np.float32(1.0 / self.f)
@@ -479,8 +519,11 @@ class _BodyCaster:
         de1, de2, de3, sin2, rho_limb = de1[sel], de2[sel], de3[sel], sin2[sel], rho_limb[sel]
         b2 = distf * distf * sin2
         rays = (-distf * de3 * de1, -distf * de3 * de2, distf * sin2, de1, de2, de3, b2)
+        warm = None
+        if depth_guess is not None:
+            warm = -distf * de3 - depth_guess[cand[sel]].astype(np.float32) + np.float32(self.dist / self.f)
         # first guess: a sphere as wide as the limb in this direction
-        h, normal = self._intersect(rays, np.sqrt(np.maximum(rho_limb * rho_limb - b2, np.float32(0.0))))
+        h, normal = self._intersect(rays, np.sqrt(np.maximum(rho_limb * rho_limb - b2, np.float32(0.0))), warm)
         n1, n2, n3 = normal
         depth = -distf * de3 - h
         sv = self.sun_v
@@ -490,10 +533,12 @@ class _BodyCaster:
         law = w * 2 * mu0 / np.maximum(mu0 + mu, np.float32(1e-12)) + (1 - w) * mu0
         return cand[sel], depth, self.signal_scale * law
 
-    def _intersect(self, rays: tuple[np.ndarray, ...], h0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _intersect(
+        self, rays: tuple[np.ndarray, ...], h0: np.ndarray, warm: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Front intersection h (m before the closest point) and the unit normal (3, n) there, by safeguarded Newton.
 
-        ``h0`` is the first guess inside the smallest radius; the bracket starts as [h(r_min), h(r_max)] inside the smallest radius and as the
+        ``h0`` is the first guess inside the smallest radius (``warm``, where not NaN, for any ray); the bracket starts as [h(r_min), h(r_max)] inside the smallest radius and as the
         whole chord [-h(r_max), h(r_max)] elsewhere, and shrinks from the side of each Newton iterate's sign.
         """
         table = self.table
@@ -527,6 +572,9 @@ class _BodyCaster:
         lo = -hi + (np.sqrt(np.maximum(r_min * r_min - b2, np.float32(0.0))) + hi) * inner
         # off the inner sphere the front root is reached monotonically from the camera side: start there
         h = hi + (np.clip(h0, lo, hi) - hi) * inner
+        if warm is not None:
+            # a start from the neighbours' depth: inside the bracket, the safeguard still holds
+            h = np.where(np.isnan(warm), h, np.clip(warm, lo, hi))
         normal = np.zeros((3, b2.size), dtype=np.float32)
         active = np.arange(b2.size)
         act_rays, h_a, lo_a, hi_a = rays, h, lo, hi
@@ -553,72 +601,193 @@ class _BodyCaster:
 
 
 _SUBSAMPLE_MIN_PX = 48.0  # bodies at least this wide are cast on a 2 px grid inside, per pixel along edges
+_COARSE_MIN_PX = 96.0  # ... and at least this wide on a 4 px grid first, refined to 2 px where it is not smooth
+# Largest depth spread inside an interpolated cell, in cell widths, per node spacing (px). A spread over 3 widths
+# means an occluding edge or a grazing surface (emission cosine below ~0.3) whose shading bends fast. Bilinear error
+# grows as spacing^2 / cos^3(emission), so 4 px cells stop at cos 0.5 (1.7 widths) to keep the 2 px cells' worst case.
+_SMOOTH_SPREAD_CELLS = {2: 3.0, 4: 1.7}
 
 
 def grid_step_px(diameter_px: float) -> int:
-    """Node spacing (px) of the first ray-casting pass for a body ``diameter_px`` wide: 1 or 2."""
-    return 1 if diameter_px < _SUBSAMPLE_MIN_PX else 2
+    """Node spacing (px) of the first ray-casting pass for a body ``diameter_px`` wide: 1, 2 or 4."""
+    if diameter_px < _SUBSAMPLE_MIN_PX:
+        return 1
+    return 2 if diameter_px < _COARSE_MIN_PX else 4
 
 
 def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
-    """Bilinear interpolation of node values (n, m) at pixels (h, w) of a grid with a node every ``step`` px.
+    """Bilinear interpolation of node values (n, m) float32 at pixels (h, w) of a grid with a node every ``step`` px:
+    node (i, j) sits on pixel (step i, step j); pixels beyond the last node take its value.
 
-    Node (i, j) sits on pixel (step i, step j); ``cv2.warpAffine`` with the exact scale ``step`` (a power of two,
-    so its 1/32 px fixed-point weights are exact) does the interpolation.
+    ``cv2.remap`` with maps at exact multiples of 1/step (a power of two up to 32, so its 1/32 px fixed-point
+    weights are exact) does the interpolation.
     """
-    m = np.array([[step, 0.0, 0.0], [0.0, step, 0.0]], dtype=np.float64)
-    return cv2.warpAffine(nodes, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    if step not in (1, 2, 4, 8, 16, 32):
+        raise RenderError(f"upsampled_nodes: step must be a power of two up to 32, got {step}")
+    map_x, map_y = _node_maps(step, -(-h // 256) * 256, -(-w // 256) * 256)
+    return cv2.remap(nodes, map_x[:h, :w], map_y[:h, :w], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+@lru_cache(maxsize=16)
+def _node_maps(step: int, h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """``cv2.remap`` maps (h, w) from pixels to the coordinates of a grid with a node every ``step`` px."""
+    map_x = np.broadcast_to((np.arange(w) / step).astype(np.float32), (h, w)).copy()
+    map_y = np.broadcast_to((np.arange(h) / step).astype(np.float32)[:, None], (h, w)).copy()
+    map_x.setflags(write=False)
+    map_y.setflags(write=False)
+    return map_x, map_y
+
+
+def _bilinear_at(
+    hit: np.ndarray, nodes: np.ndarray, step: int, py: np.ndarray, px: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear interpolation of node values (n, m) at box pixels (py, px) of a grid with a node every ``step`` px,
+    and whether all four corners of the enclosing cell hit the body."""
+    i, j = py // step, px // step
+    fy = (py - i * step).astype(np.float32) * np.float32(1.0 / step)
+    fx = (px - j * step).astype(np.float32) * np.float32(1.0 / step)
+    wn = hit.shape[1]
+    k00 = i * wn + j
+    v = nodes.reshape(-1)
+    hf = hit.reshape(-1)
+    v00, v10, v01, v11 = v[k00], v[k00 + wn], v[k00 + 1], v[k00 + wn + 1]
+    est = v00 + (v10 - v00) * fy + (v01 - v00) * fx + (v00 - v10 - v01 + v11) * (fx * fy)
+    return est, hf[k00] & hf[k00 + wn] & hf[k00 + 1] & hf[k00 + wn + 1]
+
+
+def _cast_nodes(
+    caster: _BodyCaster,
+    r0: int,
+    c0: int,
+    step: int,
+    hit: np.ndarray,
+    depth: np.ndarray,
+    sig: np.ndarray,
+    sel: np.ndarray,
+    depth_guess: np.ndarray | None = None,
+) -> None:
+    """Cast the nodes ``sel`` (flat indices) of a grid with a node every ``step`` px from pixel (r0, c0); write their
+    hit flags, depth (m) and signal (e-/s) into ``hit``, ``depth`` and ``sig`` (n, m)."""
+    wn = hit.shape[1]
+    idx, dep, val = caster.cast(r0 + step * (sel // wn), c0 + step * (sel % wn), depth_guess)
+    at = sel[idx]
+    hit.reshape(-1)[at] = True
+    depth.reshape(-1)[at] = dep
+    sig.reshape(-1)[at] = val
+
+
+def _cell_counts(flags: np.ndarray) -> np.ndarray:
+    """Number of the four corner nodes of each cell that are set: (n - 1, m - 1) int8."""
+    return flags[:-1, :-1].astype(np.int8) + flags[1:, :-1] + flags[:-1, 1:] + flags[1:, 1:]
+
+
+def _cells_to_pixels(cells: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
+    """Pixel mask (h, w) uint8 of the cells (n, m) of a grid with a node every ``step`` px (cell (i, j) spans pixels
+    [step i, step (i + 1)) x [step j, step (j + 1)))."""
+    n, m = cells.shape
+    return cv2.resize(cells.astype(np.uint8), (m * step, n * step), interpolation=cv2.INTER_NEAREST)[:h, :w]
 
 
 def _cast_body(
-    view: _BodyView, c2i: np.ndarray, sun_c: np.ndarray, cfg: CameraConfig, f: float, cx: float, cy: float
+    view: _BodyView,
+    c2i: np.ndarray,
+    sun_c: np.ndarray,
+    cfg: CameraConfig,
+    f: float,
+    cx: float,
+    cy: float,
+    need_depth: bool = True,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Ray-cast one body over its box: depth (m, inf where the body is not hit) and signal (e-/s), both (h, w).
 
-    Small bodies are cast at every pixel. Wider ones are cast at every ``grid_step_px`` pixel first; the cells
-    whose four corners hit the body at similar depths are interpolated bilinearly (the shading is smooth there),
-    and every pixel of the other cells that touch the body (limb, occluding edges) is cast on its own.
+    Small bodies are cast at every pixel. Wider ones are cast at every ``grid_step_px`` pixel first, then refined
+    as a quadtree: the cells whose four corners hit the body at similar depths (and, on the 4 px grid, all on the
+    same side of the terminator) are interpolated bilinearly, the shading being smooth there; the other cells that
+    touch the body are cast on the grid twice as fine, and those still not smooth on the 2 px grid (limb, occluding
+    edges) at every pixel. Rays with cast neighbours start their intersection from the neighbours' depth.
+    Without ``need_depth`` the depth of interpolated pixels is 0 (only whether they hit is kept).
     """
     r0, r1, c0, c1 = view.box
     h, w = r1 - r0, c1 - c0
     caster = _BodyCaster(view, c2i, sun_c, cfg, f, cx, cy)
-    depth = np.full(h * w, np.inf, dtype=np.float32)
-    sig = np.zeros(h * w, dtype=np.float32)
     k = grid_step_px(caster.diameter_px)
     if k == 1:
+        depth = np.full(h * w, np.inf, dtype=np.float32)
+        sig = np.zeros(h * w, dtype=np.float32)
         hit, dep, val = caster.cast(np.repeat(np.arange(r0, r1), w), np.tile(np.arange(c0, c1), h))
         depth[hit] = dep
         sig[hit] = val
         return depth.reshape(h, w), sig.reshape(h, w)
-    hc, wc = h // k + 2, w // k + 2
-    hit_n, depth_n, sig_n = caster.cast(np.repeat(r0 + k * np.arange(hc), wc), np.tile(c0 + k * np.arange(wc), hc))
-    hit = np.zeros(hc * wc, dtype=bool)
-    hit[hit_n] = True
-    hit = hit.reshape(hc, wc)
-    node_depth = np.zeros(hc * wc, dtype=np.float32)
-    node_depth[hit_n] = depth_n
-    node_depth = node_depth.reshape(hc, wc)
-    node_sig = np.zeros(hc * wc, dtype=np.float32)
-    node_sig[hit_n] = sig_n
-    node_sig = node_sig.reshape(hc, wc)
-    corners = hit[:-1, :-1].astype(np.int8) + hit[1:, :-1] + hit[:-1, 1:] + hit[1:, 1:]
-    d00, d10, d01, d11 = node_depth[:-1, :-1], node_depth[1:, :-1], node_depth[:-1, 1:], node_depth[1:, 1:]
-    spread = np.maximum(np.maximum(d00, d10), np.maximum(d01, d11)) - np.minimum(np.minimum(d00, d10), np.minimum(d01, d11))
-    # a depth step of more than 3 cell widths inside a cell means an occluding edge of the surface there
-    smooth = (corners == 4) & (spread < np.float32(3.0 * k * caster.dist / f))
-    rough = (corners > 0) & ~smooth
-    cell_class = smooth.astype(np.uint8) + 2 * rough.astype(np.uint8)  # 1: interpolated, 2: cast per pixel
-    px_class = cv2.resize(cell_class, ((wc - 1) * k, (hc - 1) * k), interpolation=cv2.INTER_NEAREST)[:h, :w]
-    smooth_px = px_class == 1
-    up_depth = upsampled_nodes(node_depth, k, h, w)
-    up_sig = upsampled_nodes(node_sig, k, h, w)
-    depth = np.where(smooth_px, up_depth, np.float32(np.inf)).reshape(-1)
-    sig = np.where(smooth_px, up_sig, np.float32(0.0)).reshape(-1)
-    rough_px = np.flatnonzero(px_class == 2)
-    hit_r, depth_r, sig_r = caster.cast(r0 + rough_px // w, c0 + rough_px % w)
-    depth[rough_px[hit_r]] = depth_r
-    sig[rough_px[hit_r]] = sig_r
-    return depth.reshape(h, w), sig.reshape(h, w)
+    depth = np.full((h, w), np.inf, dtype=np.float32)
+    sig = np.zeros((h, w), dtype=np.float32)
+    hn, wn = h // k + 2, w // k + 2
+    hit = np.zeros((hn, wn), dtype=bool)
+    n_depth = np.zeros((hn, wn), dtype=np.float32)
+    n_sig = np.zeros((hn, wn), dtype=np.float32)
+    _cast_nodes(caster, r0, c0, k, hit, n_depth, n_sig, np.arange(hn * wn))
+    region: np.ndarray | None = None  # cells of this grid still to classify (None: all)
+    while True:
+        d = n_depth
+        spread = np.maximum(np.maximum(d[:-1, :-1], d[1:, :-1]), np.maximum(d[:-1, 1:], d[1:, 1:])) - np.minimum(
+            np.minimum(d[:-1, :-1], d[1:, :-1]), np.minimum(d[:-1, 1:], d[1:, 1:])
+        )
+        counts = _cell_counts(hit)
+        smooth = (counts == 4) & (spread < np.float32(_SMOOTH_SPREAD_CELLS[k] * k * caster.dist / f))
+        if k > 2:
+            lit = _cell_counts(n_sig > 0)
+            smooth &= (lit == 0) | (lit == 4)  # the shading has a kink at the terminator: refine across it
+        refine = counts > 0
+        if region is not None:
+            smooth &= region
+            refine &= region
+        refine &= ~smooth
+        if smooth.any():
+            px = _cells_to_pixels(smooth, k, h, w)
+            if region is None:  # the first grid: most of the box, interpolated in one pass
+                cv2.copyTo(upsampled_nodes(n_sig, k, h, w), px, sig)
+                cv2.copyTo(upsampled_nodes(n_depth, k, h, w) if need_depth else np.zeros_like(sig), px, depth)
+            else:  # a finer grid: a band of cells, interpolated where they are
+                at = np.flatnonzero(px)
+                py, pxx = at // w, at % w
+                sig.reshape(-1)[at] = _bilinear_at(hit, n_sig, k, py, pxx)[0]
+                depth.reshape(-1)[at] = _bilinear_at(hit, n_depth, k, py, pxx)[0] if need_depth else 0.0
+        if k == 2 or not refine.any():
+            break
+        # the grid twice as fine: its even nodes are this grid's, the others are cast around the refined cells
+        fine_hn, fine_wn = 2 * hn - 1, 2 * wn - 1
+        fine_hit = np.zeros((fine_hn, fine_wn), dtype=bool)
+        fine_depth = np.zeros((fine_hn, fine_wn), dtype=np.float32)
+        fine_sig = np.zeros((fine_hn, fine_wn), dtype=np.float32)
+        fine_hit[::2, ::2] = hit
+        fine_depth[::2, ::2] = n_depth
+        fine_sig[::2, ::2] = n_sig
+        region = np.repeat(np.repeat(refine, 2, axis=0), 2, axis=1)
+        need = np.zeros((fine_hn, fine_wn), dtype=bool)
+        need[:-1, :-1] |= region
+        need[1:, :-1] |= region
+        need[:-1, 1:] |= region
+        need[1:, 1:] |= region
+        need[::2, ::2] = False
+        sel = np.flatnonzero(need)
+        guess, ok = _bilinear_at(hit, n_depth, k, (k // 2) * (sel // fine_wn), (k // 2) * (sel % fine_wn))
+        _cast_nodes(caster, r0, c0, k // 2, fine_hit, fine_depth, fine_sig, sel, np.where(ok, guess, np.nan))
+        hn, wn, k = fine_hn, fine_wn, k // 2
+        hit, n_depth, n_sig = fine_hit, fine_depth, fine_sig
+    rough = _cells_to_pixels(refine, k, h, w).view(bool)
+    # pixels on a node of this grid were cast already
+    node_px = rough[::k, ::k].copy()
+    rough[::k, ::k] = False
+    on = np.flatnonzero(node_px.reshape(-1) & hit[: node_px.shape[0], : node_px.shape[1]].reshape(-1))
+    ni, nj = on // node_px.shape[1], on % node_px.shape[1]
+    depth[k * ni, k * nj] = n_depth[ni, nj]
+    sig[k * ni, k * nj] = n_sig[ni, nj]
+    rough_px = np.flatnonzero(rough)
+    rows, cols = rough_px // w, rough_px % w
+    guess, ok = _bilinear_at(hit, n_depth, k, rows, cols)
+    hit_r, depth_r, sig_r = caster.cast(r0 + rows, c0 + cols, np.where(ok, guess, np.nan))
+    depth.reshape(-1)[rough_px[hit_r]] = depth_r
+    sig.reshape(-1)[rough_px[hit_r]] = sig_r
+    return depth, sig
 
 
 @dataclass
@@ -701,22 +870,46 @@ def _cell_stars(seed: int, face: int, i: int, j: int, limiting_mag: float) -> tu
     return v, mags
 
 
+_STAR_BIN_PER_RAD = 400.0  # boresight components are rounded to 1/400: star sets are cached per 0.14 deg bin
+
+
 def sky_stars(seed: int, c2i: np.ndarray, cfg: CameraConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Seeded all-sky stars near the field of view: inertial unit directions (n, 3) and magnitudes (n,)."""
-    half = math.radians(cfg.fov_deg) / 2.0 + math.radians(3.5)  # field plus one cell at its widest
-    g = np.tan(np.linspace(-half, half, int(math.degrees(2 * half) / 0.3) + 2))
+    """Seeded all-sky stars near the field of view: inertial unit directions (n, 3) and magnitudes (n,).
+
+    The stars of every cube-sphere cell within the field's circumscribed cone plus one cell, around the boresight
+    rounded to a bin (any roll), cached per bin: a superset of the stars in the field, the same on every call.
+    """
+    b = c2i[:, 2]
+    key = (round(float(b[0]) * _STAR_BIN_PER_RAD), round(float(b[1]) * _STAR_BIN_PER_RAD),
+           round(float(b[2]) * _STAR_BIN_PER_RAD))
+    return _sky_stars_around(seed, key, float(cfg.fov_deg), float(cfg.star_limiting_mag))
+
+
+@lru_cache(maxsize=512)
+def _sky_stars_around(
+    seed: int, key: tuple[int, int, int], fov_deg: float, limiting_mag: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stars of the cells within the field's half-diagonal plus one cell (3.5 deg) and the bin's reach of a
+    boresight bin ``key`` (components times _STAR_BIN_PER_RAD)."""
+    centre = np.asarray(key, dtype=np.float64)
+    centre /= np.linalg.norm(centre)
+    reach = math.radians(fov_deg) / 2.0 * math.sqrt(2.0) + math.radians(3.5) + math.sqrt(3.0) / _STAR_BIN_PER_RAD
+    e1, e2 = _view_basis(centre)
+    g = np.tan(np.linspace(-reach, reach, int(math.degrees(2 * reach) / 0.3) + 2))
     gx, gy = np.meshgrid(g, g)
-    probe = np.stack([gx.ravel(), gy.ravel(), np.ones(gx.size)], axis=1) @ c2i.T
+    near = gx * gx + gy * gy <= math.tan(reach) ** 2 * 1.02
+    probe = centre + gx[near][:, None] * e1 + gy[near][:, None] * e2
     probe /= np.linalg.norm(probe, axis=1, keepdims=True)
     cells = set(zip(*(a.tolist() for a in _cube_cell(probe))))
     dirs, mags = [], []
     for face, i, j in sorted(cells):
-        d, m = _cell_stars(seed, face, i, j, cfg.star_limiting_mag)
+        d, m = _cell_stars(seed, face, i, j, limiting_mag)
         dirs.append(d)
         mags.append(m)
-    if not dirs:
-        return np.empty((0, 3)), np.empty(0)
-    return np.concatenate(dirs), np.concatenate(mags)
+    out = (np.concatenate(dirs), np.concatenate(mags)) if dirs else (np.empty((0, 3)), np.empty(0))
+    for arr in out:
+        arr.setflags(write=False)
+    return out
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -736,7 +929,8 @@ def plume_cross_section_m2(plume: PlumeConfig, t_s: float) -> float:
 def _plume_signal(
     scene: Scene, cfg: CameraConfig, plume: PlumeConfig, c2i: np.ndarray, f: float, cx: float, cy: float
 ) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
-    """Plume signal (e-/s per pixel) over its clipped pixel box, or None if there is none in view."""
+    """Plume electrons per pixel in the exposure over its clipped pixel box (a view of a work buffer, valid until the
+    next call), or None if there is none in view."""
     t = scene.time_since_impact_s
     if not plume.enabled or t is None or t <= 0 or scene.plume_body_index is None:
         return None
@@ -777,7 +971,7 @@ def _plume_signal(
     # samples symmetric about the closest point: x = q + ell d and q . d = 0, so |x|^2 = b^2 + ell^2 for +-ell
     half = _PLUME_STEPS // 2
     frac = (np.arange(half) + 0.5) / half
-    ell = b_eff[None] * np.tan(frac[:, None, None] * phi_max[None])  # (steps/2, gh, gw), ell >= 0
+    ell = b_eff[None] * _tan_multiples(phi_max, frac)  # (steps/2, gh, gw), ell >= 0
     rr = np.sqrt(b[None] * b[None] + ell * ell)
     inv_rr = 1.0 / np.maximum(rr, 1e-9)
     # the cone wall is not sharp (ejection directions scatter): a linear ramp over +-5 deg about the half-angle
@@ -795,8 +989,7 @@ def _plume_signal(
     cos_alpha = float(sun_c @ (p / np.linalg.norm(p)))
     coarse = (cfg.body_signal_e_s * plume.reflectance_factor * _phase_factor(cfg, cos_alpha)) * (-np.expm1(-tau))
     # keep the part that can change a pixel: more than 1 % of the read noise (or of one electron) in the exposure
-    floor_e_s = 0.01 * max(cfg.read_noise_e, 1.0) / scene.exposure_s
-    on = coarse > floor_e_s
+    on = coarse * scene.exposure_s > 0.01 * max(cfg.read_noise_e, 1.0)
     rows_on = np.flatnonzero(on.any(axis=1))
     cols_on = np.flatnonzero(on.any(axis=0))
     if rows_on.size == 0:
@@ -806,8 +999,23 @@ def _plume_signal(
     rb = int(min(h, math.ceil((rows_on[-1] + 2.5) * h / gh)))
     ca = int(max(0, math.floor((cols_on[0] - 0.5) * w / gw)))
     cb = int(min(w, math.ceil((cols_on[-1] + 2.5) * w / gw)))
-    fine = cv2.resize(coarse.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    fine = cv2.resize((coarse * scene.exposure_s).astype(np.float32), (w, h), dst=_scratch("plume", (h, w)),
+                      interpolation=cv2.INTER_LINEAR)
     return (r0 + ra, r0 + rb, c0 + ca, c0 + cb), fine[ra:rb, ca:cb]
+
+
+def _tan_multiples(angle: np.ndarray, frac: np.ndarray) -> np.ndarray:
+    """``tan(frac[j] * angle)`` (len(frac), *angle.shape) for equally spaced ``frac``, by rotating (cos, sin) from
+    the first multiple in equal steps: four trigonometric calls per node instead of one per sample."""
+    step = (frac[1] - frac[0]) * angle if len(frac) > 1 else np.zeros_like(angle)
+    c0, s0 = np.cos(frac[0] * angle), np.sin(frac[0] * angle)
+    cs, sn = np.cos(step), np.sin(step)
+    out = np.empty((len(frac),) + angle.shape)
+    c, s_ = c0, s0
+    for j in range(len(frac)):
+        out[j] = s_ / c
+        c, s_ = c * cs - s_ * sn, s_ * cs + c * sn
+    return out
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -962,7 +1170,7 @@ def _scene_electrons(
     views: list[_BodyView] = []
     for i, body in enumerate(scene.bodies):
         centre_c = c2i.T @ (body.centre_inertial_m - scene.camera_position_m)
-        dv = -np.cross(omega_c, centre_c) + vel_c
+        dv = vel_c - _cross3(omega_c, centre_c)
         smear = _image_velocity_px_s(centre_c, dv, f) * texp if centre_c[2] > 0 else np.zeros(2)
         margin = psf_half_size_px(cfg.psf_sigma_px, float(np.hypot(*smear)))
         r_max = body.radius_m * body.shape.max_radius()
@@ -975,7 +1183,7 @@ def _scene_electrons(
         depth: np.ndarray | None = None
         for v in cluster.members:
             vr0, vr1, vc0, vc1 = v.box
-            dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy)
+            dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy, need_depth=len(cluster.members) > 1)
             if depth is None and v.box == cluster.box:
                 depth, rad = dep, sig
                 continue
@@ -1000,7 +1208,8 @@ def _scene_electrons(
     pl = _plume_signal(scene, cfg, plume, c2i, f, cx, cy)
     if pl is not None:
         (pr0, pr1, pc0, pc1), fine = pl
-        signal[pr0:pr1, pc0:pc1] += fine * np.float32(texp)
+        window = signal[pr0:pr1, pc0:pc1]
+        cv2.add(window, fine, dst=window)
         boxes.append((pr0, pr1, pc0, pc1))
 
     star_flat = _add_stars(scene, cfg, c2i, omega_c, f, cx, cy, signal, occluders)
