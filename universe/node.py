@@ -78,6 +78,8 @@ def run(bus: Attachment, sim: Universe, scenario: Scenario, realtime: bool, cloc
         if nxt is None:
             break
         request, blob = nxt
+    for line in sim.faults.still_active(sim.t_s):
+        log.info("%s", line)
     # hand ground the last truth, and the telemetry still travelling down, before stopping
     while (gs := sim.drain()) is not None:
         bus.sim_time_s = sim.t_s

@@ -59,6 +59,12 @@ class FaultBook:
         """Faults of ``kind`` whose window contains ``t_s``."""
         return [f for f in self.faults if f.kind == kind and f.start_s <= t_s < f.end_s]
 
+    def still_active(self, t_s: float) -> Iterator[str]:
+        """Log lines for the faults still active when the run ends at ``t_s`` (they never got an end line)."""
+        for i in sorted(self._active):
+            f = self.faults[i]
+            yield f"fault still active at the end of the run t={t_s:.2f} s: {f.kind} (window {f.start_s:g}..{f.end_s:g} s)"
+
     def transitions(self, t_s: float) -> Iterator[str]:
         """Log lines for the faults that started or ended by ``t_s`` since the last call (non-decreasing times).
 

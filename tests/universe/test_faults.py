@@ -287,3 +287,15 @@ def test_fault_book_logs_windows_by_the_calls_that_cross_their_edges() -> None:
     assert "frame_blank" in lines[10.0][0] and lines[10.0][0].startswith("fault start t=10.00")
     assert [line.split(":")[0] for line in lines[11.0]] == ["fault start t=11.00 s", "fault end   t=11.00 s"]
     assert "star_tracker_outage" in lines[11.0][0] and lines[12.0][0].startswith("fault end   t=12.00 s: frame_blank")
+
+
+def test_fault_active_at_the_end_is_logged_as_such() -> None:
+    """A fault whose window outlasts the run gets a start line and a 'still active at the end' line."""
+    from universe.simulator import FaultBook
+    from universe.config import FaultConfig
+
+    book = FaultBook([FaultConfig(kind="frame_lost", start_s=1.0, end_s=100.0)])
+    assert list(book.transitions(0.0)) == []
+    assert len(list(book.transitions(2.0))) == 1
+    (line,) = book.still_active(10.0)
+    assert "still active at the end of the run" in line and "frame_lost" in line
