@@ -285,11 +285,16 @@ def _remap_points(table: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarr
     n = mx.size
     if n == 0:
         return np.empty((0, table.shape[2]), dtype=table.dtype)
+    if n <= _REMAP_COLS:
+        out = cv2.remap(table, mx.reshape(1, n), my.reshape(1, n), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return out.reshape(n, table.shape[2])
     rows = -(-n // _REMAP_COLS)
-    pad = rows * _REMAP_COLS - n
-    mxp = np.concatenate([mx, np.zeros(pad, np.float32)]).reshape(rows, _REMAP_COLS)
-    myp = np.concatenate([my, np.zeros(pad, np.float32)]).reshape(rows, _REMAP_COLS)
-    out = cv2.remap(table, mxp, myp, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    mxp = np.zeros(rows * _REMAP_COLS, np.float32)
+    myp = np.zeros(rows * _REMAP_COLS, np.float32)
+    mxp[:n] = mx
+    myp[:n] = my
+    out = cv2.remap(table, mxp.reshape(rows, _REMAP_COLS), myp.reshape(rows, _REMAP_COLS), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
     return out.reshape(rows * _REMAP_COLS, table.shape[2])[:n]
 
 
@@ -538,32 +543,32 @@ class _BodyCaster:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Front intersection h (m before the closest point) and the unit normal (3, n) there, by safeguarded Newton.
 
-        ``h0`` is the first guess inside the smallest radius (``warm``, where not NaN, for any ray); the bracket starts as [h(r_min), h(r_max)] inside the smallest radius and as the
-        whole chord [-h(r_max), h(r_max)] elsewhere, and shrinks from the side of each Newton iterate's sign.
+        ``h0`` is the first guess inside the smallest radius (``warm``, where not NaN, for any ray); the bracket
+        starts as [h(r_min), h(r_max)] inside the smallest radius and as the whole chord [-h(r_max), h(r_max)]
+        elsewhere, and shrinks from the side of each Newton iterate's sign.
         """
         table = self.table
         n_side = table.shape[0]
         scale = np.float32((n_side - 1) / (2.0 * _TABLE_S))
-        off = np.float32(_TABLE_S)
+        off = np.float32(_TABLE_S * (n_side - 1) / (2.0 * _TABLE_S))
         tiny = np.float32(1e-9 * self.dist)
+        floor = np.float32(1e-3)
 
-        def surface(rays: tuple[np.ndarray, ...], h: np.ndarray) -> tuple[np.ndarray, ...]:
-            """g = |x| - r(u), dg/dh and the unit normal at the points h before the rays' closest points."""
-            q1, q2, q3, a1, a2, a3, bb = rays
+        def surface(ray: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
+            """g = |x| - r(u), dg/dh and the (interpolated, not renormalised) normal at the points h before the rays'
+            closest points; ``ray`` rows: q1, q2, q3, a1, a2, a3, b^2."""
+            q1, q2, q3, a1, a2, a3, bb = ray
             x1, x2, x3 = q1 - h * a1, q2 - h * a2, q3 - h * a3
             qn = np.sqrt(bb + h * h) + tiny
-            den = np.maximum(qn + x3, np.float32(1e-3) * qn)
-            look = _remap_points(table, (x1 / den + off) * scale, (x2 / den + off) * scale)
-            r, n1, n2, n3 = look[:, 0], look[:, 1], look[:, 2], look[:, 3]
-            inv_n = np.float32(1.0) / np.sqrt(n1 * n1 + n2 * n2 + n3 * n3)
-            n1, n2, n3 = n1 * inv_n, n2 * inv_n, n3 * inv_n
+            inv_den = scale / np.maximum(qn + x3, floor * qn)
+            look = _remap_points(table, x1 * inv_den + off, x2 * inv_den + off)
+            r, m1, m2, m3 = look[:, 0], look[:, 1], look[:, 2], look[:, 3]
             inv_q = np.float32(1.0) / qn
-            nu = np.maximum((n1 * x1 + n2 * x2 + n3 * x3) * inv_q, np.float32(1e-3))
-            ud = (x1 * a1 + x2 * a2 + x3 * a3) * inv_q
-            nd = n1 * a1 + n2 * a2 + n3 * a3
-            # r(u) along the ray: its tangential gradient is r (u - n / (n.u)), and du/dh = -(d - (u.d) u) / |x|
-            slope = (h + r * (ud - nd / nu)) * inv_q
-            return qn - r, slope, n1, n2, n3
+            # r(u) along the ray: its tangential gradient is r (u - n / (n.u)), and du/dh = -(d - (u.d) u) / |x|;
+            # with q . d = 0, x . d = -h, and the normal's length cancels in (n.d) / (n.u) (|n| ~ 1 bounds the floor)
+            mx = np.maximum(m1 * x1 + m2 * x2 + m3 * x3, floor * qn)
+            slope = h * inv_q * (np.float32(1.0) - r * inv_q) - r * (m1 * a1 + m2 * a2 + m3 * a3) / mx
+            return qn - r, slope, m1, m2, m3
 
         b2 = rays[6]
         r_min, r_max, radius = self.r_min, self.r_max, self.radius
@@ -577,26 +582,28 @@ class _BodyCaster:
             h = np.where(np.isnan(warm), h, np.clip(warm, lo, hi))
         normal = np.zeros((3, b2.size), dtype=np.float32)
         active = np.arange(b2.size)
-        act_rays, h_a, lo_a, hi_a = rays, h, lo, hi
+        act = np.stack(rays)
+        h_a, lo_a, hi_a = h, lo, hi
         tol = np.float32(1e-4) * radius
         for it in range(_RAY_ITERATIONS):
-            g, slope, n1, n2, n3 = surface(act_rays, h_a)
+            g, slope, n1, n2, n3 = surface(act, h_a)
             normal[0, active], normal[1, active], normal[2, active] = n1, n2, n3
-            outside = (g > 0).astype(np.float32)
-            hi_a = hi_a + (h_a - hi_a) * outside
-            lo_a = h_a + (lo_a - h_a) * outside
+            outside = g > 0
+            hi_a = np.where(outside, h_a, hi_a)
+            lo_a = np.where(outside, lo_a, h_a)
             step = h_a - g / np.maximum(slope, np.float32(1e-6))
-            mid = np.float32(0.5) * (lo_a + hi_a)
-            h_a = mid + (step - mid) * ((step > lo_a) & (step < hi_a))
+            h_a = np.where((step > lo_a) & (step < hi_a), step, np.float32(0.5) * (lo_a + hi_a))
             h[active] = h_a
             if it + 1 < _RAY_ITERATIONS:
                 # rays already on the surface (|g| below 0.1 mm per metre of radius) are done
                 keep = np.flatnonzero(np.abs(g) > tol)
                 if keep.size == 0:
                     break
-                active = active[keep]
-                act_rays = tuple(a[keep] for a in act_rays)
-                h_a, lo_a, hi_a = h_a[keep], lo_a[keep], hi_a[keep]
+                if keep.size < active.size:
+                    active = active[keep]
+                    act = act[:, keep]
+                    h_a, lo_a, hi_a = h_a[keep], lo_a[keep], hi_a[keep]
+        normal *= np.float32(1.0) / np.sqrt(np.sum(normal * normal, axis=0))
         return h, normal
 
 
