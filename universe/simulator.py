@@ -61,7 +61,7 @@ class FaultBook:
 
     def still_active(self, t_s: float) -> Iterator[str]:
         """Log lines for the faults still active when the run ends at ``t_s`` (they never got an end line)."""
-        for i in sorted(self._active):
+        for i in sorted(self._started - self._ended):
             f = self.faults[i]
             yield f"fault still active at the end of the run t={t_s:.2f} s: {f.kind} (window {f.start_s:g}..{f.end_s:g} s)"
 
