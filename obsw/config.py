@@ -191,11 +191,12 @@ class ImagingConfig(Frozen):
         "1.19 km / diameter 0.78 km = 1.53, plus margin for the lit-extent bias)",
     )
     dimorphos_max_area_fraction: float = Field(
-        0.5,
+        0.3,
         gt=0,
         le=1,
         description="largest Dimorphos/Didymos blob area ratio when Dimorphos is first found (diameters 164/780 m "
-        "give 0.044; margin for phase, a Didymos partly out of the frame and plume dust merged with Dimorphos)",
+        "give 0.044; margin for phase, a Didymos partly out of the frame and plume dust merged with Dimorphos; "
+        "two pieces of Didymos's thin crescent after C/A are 0.4 or more: 0.3, from the five closed-loop flybys)",
     )
     dimorphos_min_peak_fraction: float = Field(
         0.3,
@@ -224,12 +225,20 @@ class ImagingConfig(Frozen):
         "level above background (lit bodies, even crescents at 135 deg phase: < 0.3; the rendered plume: > 0.45)",
     )
     core_peak_fraction: float = Field(
-        0.75,
+        0.65,
         gt=0,
         le=1,
-        description="a blob's core is its pixels at or above background + this fraction of its peak above background "
-        "(dimensionless; half maximum, the usual full-width-at-half-maximum cut: a lit body keeps most of its "
-        "pixels, the diffuse ejecta around Dimorphos few)",
+        description="a blob's core is its pixels at or above background + this fraction of its peak above background, "
+        "8-bit sqrt-companded DN (dimensionless; 0.65 is about 0.42 of the linear signal): a lit body keeps most of "
+        "its pixels, the ejecta around Dimorphos few; 0.6 to 0.75 keep every Dimorphos centroid of the five "
+        "closed-loop flybys within 10 px of the truth, 0.5 lets a plume core pass for Dimorphos",
+    )
+    pair_memory_frames: int = Field(
+        8,
+        ge=1,
+        description="frames, counted from the last one that saw both bodies, through which their relative offset "
+        "still gates the identification while Dimorphos is not seen (merged with Didymos or its ejecta); 8 frames "
+        "span 8 s at the approach cadence of 1 Hz, when the offset changes by well under the jump gate",
     )
     centroid_noise_px: float = Field(
         2.0,

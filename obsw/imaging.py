@@ -79,6 +79,9 @@ class Detections:
     background_dn8: int  # median of the 8-bit histogram
     noise_sigma_dn8: float  # robust sigma of the background
     binned_size_px: int
+    # the latest (didymos, dimorphos) seen together, kept through frames without Dimorphos for continuity
+    pair: tuple[Blob, Blob] | None = None
+    pair_age_frames: int = 0  # frames since ``pair`` was seen (0: in this frame)
 
 
 @dataclass(frozen=True, slots=True)
@@ -397,6 +400,18 @@ def _largest(blobs: list[Blob]) -> Blob:
     return max(blobs, key=lambda b: (b.core_area_px, b.area_px, b.peak_dn8, -b.label))
 
 
+def reference_pair(previous: Detections | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
+    """Return the (didymos, dimorphos) that continuity refers to: the previous frame's pair, or the last pair seen
+    when the frames since saw no Dimorphos, for at most ``cfg.pair_memory_frames`` frames; else (None, None)."""
+    if previous is None:
+        return None, None
+    if previous.didymos is not None and previous.dimorphos is not None:
+        return previous.didymos, previous.dimorphos
+    if previous.dimorphos is None and previous.pair is not None and previous.pair_age_frames < cfg.pair_memory_frames:
+        return previous.pair
+    return None, None
+
+
 def identify_bodies(
     blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: Detections | None = None
 ) -> tuple[Blob | None, Blob | None]:
@@ -424,11 +439,12 @@ def identify_bodies(
     ]
     if not candidates:
         return None, None
-    prev_did = previous.didymos if previous is not None else None
-    prev_dim = previous.dimorphos if previous is not None else None
+    prev_did, prev_dim = reference_pair(previous, cfg)
     didymos = _largest(candidates)
     if prev_did is not None and prev_dim is not None:
-        if _continues_dimorphos_alone(didymos, prev_did, prev_dim, cfg):
+        if previous is not None and previous.dimorphos is prev_dim and _continues_dimorphos_alone(
+            didymos, prev_did, prev_dim, cfg
+        ):
             return None, didymos
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         predicted = _relative(prev_dim, prev_did)
@@ -604,6 +620,13 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
         blobs_of(components, values8, thr.threshold_dn8, thr.background_dn8, n, cfg), components, values8, thr.background_dn8, n, cfg
     )
     didymos, dimorphos = identify_bodies(blobs, cfg, previous)
+    pair: tuple[Blob, Blob] | None = None
+    age = 0
+    if didymos is not None and dimorphos is not None:
+        pair = (didymos, dimorphos)
+    elif dimorphos is None and previous is not None and previous.pair is not None:
+        # Dimorphos hidden (merged with Didymos or the plume): keep the last pair so it is found again by continuity
+        pair, age = previous.pair, previous.pair_age_frames + 1
     centre = 0.5 * (n - 1)
 
     def offsets(b: Blob | None) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
@@ -626,4 +649,6 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
         background_dn8=thr.background_dn8,
         noise_sigma_dn8=thr.noise_sigma_dn8,
         binned_size_px=n,
+        pair=pair,
+        pair_age_frames=age,
     )

@@ -90,7 +90,7 @@ def reference_pipeline(
     plume_min_area_px: int = 50,
     plume_faint_fraction: float = 0.4,
     threshold_dn8: int | None = None,
-    core_peak_fraction: float = 0.75,
+    core_peak_fraction: float = 0.65,
 ) -> ReferenceResult:
     """Run the OpenCV pipeline on a raw frame; threshold_dn8 forces the threshold instead of computing it.
 
