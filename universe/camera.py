@@ -650,10 +650,11 @@ def _bilinear_at(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Bilinear interpolation of node values (n, m) at box pixels (py, px) of a grid with a node every ``step`` px,
     and whether all four corners of the enclosing cell hit the body."""
-    i, j = py // step, px // step
+    hn, wn = hit.shape
+    # the last node row/column belongs to the cell before it
+    i, j = np.minimum(py // step, hn - 2), np.minimum(px // step, wn - 2)
     fy = (py - i * step).astype(np.float32) * np.float32(1.0 / step)
     fx = (px - j * step).astype(np.float32) * np.float32(1.0 / step)
-    wn = hit.shape[1]
     k00 = i * wn + j
     v = nodes.reshape(-1)
     hf = hit.reshape(-1)
@@ -1076,29 +1077,41 @@ def _scratch(name: str, shape: tuple[int, ...]) -> np.ndarray:
     return buf[:n].reshape(shape)
 
 
+_BAND_ROWS = 32  # rows digitised at a time: the work buffers of a band stay in the core's cache
+
+
 def _digitise(
     signal_e: np.ndarray, codes: np.ndarray, cfg: CameraConfig, dark_e: float, max_dn: int
 ) -> np.ndarray:
     """DN (uint16, same shape) of pixels holding ``signal_e`` scene electrons (float32), with their own normal codes.
 
     ``offset + dark/g + (s + sqrt(s + dark + read^2) z) / g`` with s clamped at 0, rounded to nearest (ties to even)
-    and clipped to [0, max_dn]; OpenCV element-wise kernels on one thread (1-D inputs are handled as one row).
-    ``signal_e`` is clamped at 0 in place.
+    and clipped to [0, max_dn]; OpenCV element-wise kernels on one thread, a band of rows at a time (1-D inputs are
+    handled as one row). ``signal_e`` is clamped at 0 in place.
     """
     shape = signal_e.shape
     s = signal_e.reshape(1, -1) if signal_e.ndim == 1 else signal_e
     c = codes.reshape(1, -1) if codes.ndim == 1 else codes
-    cv2.max(s, 0.0, dst=s)
-    noise = _scratch("noise", s.shape)
-    np.take(NORMAL_QUANTILES, c, out=noise, mode="wrap")  # 16-bit codes never wrap; 'raise' would buffer `out`
-    sd = _scratch("sd", s.shape)
-    cv2.add(s, float(dark_e + cfg.read_noise_e**2), dst=sd)
-    cv2.sqrt(sd, dst=sd)
-    cv2.multiply(sd, noise, dst=noise)
+    rows, cols = s.shape
+    out = np.empty((rows, cols), dtype=np.uint16)
+    band = min(rows, _BAND_ROWS)
+    noise = _scratch("noise", (band, cols))
+    sd = _scratch("sd", (band, cols))
+    var0 = float(dark_e + cfg.read_noise_e**2)
     inv_g = 1.0 / cfg.gain_e_per_dn
-    dn = cv2.addWeighted(s, inv_g, noise, inv_g, cfg.dark_offset_dn + dark_e * inv_g, dtype=cv2.CV_16U)
-    cv2.min(dn, float(max_dn), dst=dn)
-    return dn.reshape(shape)
+    bias = cfg.dark_offset_dn + dark_e * inv_g
+    for r in range(0, rows, band):
+        n = min(band, rows - r)
+        sb, nb, db = s[r : r + n], noise[:n], sd[:n]
+        cv2.max(sb, 0.0, dst=sb)
+        np.take(NORMAL_QUANTILES, c[r : r + n], out=nb, mode="wrap")  # 16-bit codes never wrap; 'raise' buffers
+        cv2.add(sb, var0, dst=db)
+        cv2.sqrt(db, dst=db)
+        cv2.multiply(db, nb, dst=nb)
+        ob = out[r : r + n]
+        cv2.addWeighted(sb, inv_g, nb, inv_g, bias, dst=ob, dtype=cv2.CV_16U)
+        cv2.min(ob, float(max_dn), dst=ob)
+    return out.reshape(shape)
 
 
 def _merged_boxes(boxes: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy import ndimage, stats
 from scipy.spatial.transform import Rotation
@@ -17,6 +17,10 @@ from universe.camera import (
     RenderError,
     Scene,
     StarCatalogue,
+    _body_box,
+    _cell_stars,
+    _merged_boxes,
+    _tan_multiples,
     focal_length_px,
     frame_to_png8,
     normal_codes,
@@ -24,7 +28,9 @@ from universe.camera import (
     project_inertial,
     psf_kernel,
     render_frame,
+    scene_electrons,
     sky_stars,
+    upsampled_nodes,
 )
 from universe.config import CameraConfig, PlumeConfig
 from universe.shapes import ShapeModel, fibonacci_sphere
@@ -484,3 +490,111 @@ def test_camera_motion_smears_a_body_by_v_t_over_range() -> None:
     length_px = 300.0 * exposure / rng_m * F_1024
     assert moments[1][1] - moments[0][1] == pytest.approx(length_px**2 / 12, rel=0.05)
     assert moments[1][0] == pytest.approx(moments[0][0], abs=0.05)
+
+
+# ------------------------------------------------------------------------------------------------ fast paths
+
+
+@pytest.mark.parametrize("step", [2, 4])
+def test_upsampled_nodes_is_bilinear_interpolation_between_nodes(step: int) -> None:
+    """Node (i, j) on pixel (step i, step j): every pixel matches scipy's order-1 map_coordinates at (y, x) / step."""
+    nodes = np.random.default_rng(step).normal(size=(23, 31)).astype(np.float32)
+    h, w = 22 * step, 30 * step
+    out = upsampled_nodes(nodes, step, h, w)
+    yy, xx = np.mgrid[0:h, 0:w] / step
+    expected = ndimage.map_coordinates(nodes.astype(float), [yy, xx], order=1)
+    assert out.shape == (h, w)
+    assert np.max(np.abs(out - expected)) < 1e-5
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 90), st.integers(1, 40), st.integers(0, 90), st.integers(1, 40)), max_size=8))
+def test_merged_boxes_are_disjoint_and_cover_every_box(raw: list[tuple[int, int, int, int]]) -> None:
+    """Merged boxes do not overlap, each input box lies in one of them, and each is the bounding box of its inputs."""
+    boxes = [(r, r + h, c, c + w) for r, h, c, w in raw]
+    merged = _merged_boxes(boxes)
+    for i, a in enumerate(merged):
+        for b in merged[i + 1 :]:
+            assert not (a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3])
+    for b in boxes:
+        assert sum(m[0] <= b[0] and b[1] <= m[1] and m[2] <= b[2] and b[3] <= m[3] for m in merged) == 1
+    for m in merged:
+        inside = [b for b in boxes if m[0] <= b[0] and b[1] <= m[1] and m[2] <= b[2] and b[3] <= m[3]]
+        assert (min(b[0] for b in inside), max(b[1] for b in inside)) == (m[0], m[1])
+        assert (min(b[2] for b in inside), max(b[3] for b in inside)) == (m[2], m[3])
+
+
+@pytest.mark.parametrize("range_m", [120_000.0, 9_000.0])
+def test_frame_moments_follow_the_detector_model_pixel_by_pixel(range_m: float) -> None:
+    """(DN - offset - (S + dark)/g) / sqrt((S + dark + read^2)/g^2 + 1/12) has mean 0 and variance 1 over the frame.
+
+    S is the scene's expected electrons per pixel; at 120 km the body fills a small box (dark look-up table elsewhere),
+    at 9 km it fills the frame (one full-frame pass).
+    """
+    cfg = CameraConfig(hot_pixel_count=0)
+    body = Body(np.array([30.0, -20.0, range_m]), 390.0, ShapeModel(seed=6))
+    s = scene((body,), sun=(0.4, 0.2, -1.0), star_seed=2)
+    expected_e = scene_electrons(s, cfg, PlumeConfig())
+    assert (expected_e > 100).mean() == (pytest.approx(0.01, abs=0.01) if range_m > 1e5 else pytest.approx(1.0, abs=0.1))
+    frame = render_frame(s, cfg, PlumeConfig(), np.random.default_rng(21)).astype(float)
+    dark_e = cfg.dark_current_e_s * 0.01
+    g = cfg.gain_e_per_dn
+    mean = cfg.dark_offset_dn + (expected_e + dark_e) / g
+    sd = np.sqrt((expected_e + dark_e + cfg.read_noise_e**2) / g**2 + 1 / 12)
+    z = (frame - mean) / sd
+    assert abs(z.mean()) < 0.005
+    assert z.var() == pytest.approx(1.0, abs=0.01)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    direction=st.tuples(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05)),
+    range_m=st.floats(2e3, 2e6),
+    radius_m=st.floats(10.0, 1000.0),
+)
+def test_body_box_holds_the_projection_of_its_bounding_sphere(
+    direction: tuple[float, float], range_m: float, radius_m: float
+) -> None:
+    """Every pinhole projection of a point of the sphere lies in the box, and the box is at most 4 px wider per side."""
+    assume(radius_m < 0.5 * range_m)
+    f, (cx, cy) = F_1024, (C_1024, C_1024)
+    centre = np.array([direction[0], direction[1], 1.0])
+    centre = centre / np.linalg.norm(centre) * range_m
+    box = _body_box(centre, radius_m, f, cx, cy, 1024, 0)
+    pts = centre + radius_m * fibonacci_sphere(4000)
+    col = cx + f * pts[:, 0] / pts[:, 2]
+    row = cy + f * pts[:, 1] / pts[:, 2]
+    seen = (col > -0.5) & (col < 1023.5) & (row > -0.5) & (row < 1023.5)
+    if box is None:
+        assert not seen.any()
+        return
+    r0, r1, c0, c1 = box
+    ic, ir = np.rint(col[seen]), np.rint(row[seen])
+    assert np.all((ir >= r0) & (ir < r1) & (ic >= c0) & (ic < c1))
+    if seen.all():  # the whole sphere in the frame: the box is tight
+        assert r0 >= ir.min() - 4 and r1 <= ir.max() + 5 and c0 >= ic.min() - 4 and c1 <= ic.max() + 5
+
+
+def test_sky_stars_hold_every_catalogue_star_in_the_field() -> None:
+    """For random attitudes, every star of the whole seeded sky that projects into the frame is in sky_stars."""
+    cfg = CameraConfig(star_limiting_mag=8.0)
+    k = 32
+    whole = [_cell_stars(3, face, i, j, 8.0)[0] for face in range(6) for i in range(k) for j in range(k)]
+    sky = np.concatenate([d for d in whole if len(d)])
+    for q in Rotation.random(25, random_state=np.random.default_rng(4)).as_quat():
+        c2i = Rotation.from_quat(q).as_matrix()
+        v = sky @ c2i
+        front = v[:, 2] > 0
+        col = C_1024 + F_1024 * v[front, 0] / v[front, 2]
+        row = C_1024 + F_1024 * v[front, 1] / v[front, 2]
+        in_field = sky[front][(np.abs(col - C_1024) < 520) & (np.abs(row - C_1024) < 520)]
+        dirs, _ = sky_stars(3, c2i, cfg)
+        have = {tuple(np.round(d, 12)) for d in dirs}
+        assert all(tuple(np.round(d, 12)) in have for d in in_field)
+
+
+def test_tan_multiples_match_tan() -> None:
+    """The rotation recurrence gives tan(frac_j * angle) for angles up to 89.9 deg."""
+    angle = np.linspace(0.0, math.radians(89.9), 500)
+    frac = (np.arange(8) + 0.5) / 8
+    assert np.allclose(_tan_multiples(angle, frac), np.tan(frac[:, None] * angle[None]), rtol=1e-9, atol=1e-12)
