@@ -233,12 +233,31 @@ class ImagingConfig(Frozen):
         "its pixels, the ejecta around Dimorphos few; 0.6 to 0.75 keep every Dimorphos centroid of the five "
         "closed-loop flybys within 10 px of the truth, 0.5 lets a plume core pass for Dimorphos",
     )
+    crescent_min_elongation: float = Field(
+        3.0,
+        ge=1,
+        description="a Didymos blob at least this elongated (major/minor axis ratio) is a thin crescent, seen at high "
+        "phase after C/A, that the threshold may break into pieces (a disc is 1, a half-lit disc about 2)",
+    )
+    crescent_gap_px: int = Field(
+        3,
+        ge=0,
+        description="a blob within this many pixels of a crescent Didymos's box, px at 512 scale, may be a piece of "
+        "it and is not taken for Dimorphos (the pieces seen in the closed-loop flybys were 1 px apart)",
+    )
     pair_memory_frames: int = Field(
-        8,
+        20,
         ge=1,
         description="frames, counted from the last one that saw both bodies, through which their relative offset "
-        "still gates the identification while Dimorphos is not seen (merged with Didymos or its ejecta); 8 frames "
-        "span 8 s at the approach cadence of 1 Hz, when the offset changes by well under the jump gate",
+        "still gates the identification while Dimorphos is not seen (merged with Didymos and its ejecta: up to 8 "
+        "frames around C/A-150 s in the closed-loop flybys); 20 frames span 20 s at the approach cadence of 1 Hz",
+    )
+    pair_memory_max_didymos_px: float = Field(
+        20.0,
+        gt=0,
+        description="the remembered pair is used only while Didymos spanned at most this many px at 512 scale "
+        "(range > ~400 km): the 1.19 km offset then changes by under 2 %/s (7 km/s / 400 km), a third of it in "
+        "20 s, inside the jump gate; nearer C/A it turns too fast to be remembered",
     )
     centroid_noise_px: float = Field(
         2.0,

@@ -395,6 +395,22 @@ def _relative_jump_px(didymos: Blob, cfg: ImagingConfig) -> float:
     return cfg.dimorphos_max_relative_jump_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
 
 
+def _box_gap_px(a: Blob, b: Blob) -> int:
+    """Return the number of pixels between two bounding boxes along the axis that separates them most (0: touching
+    or overlapping)."""
+    ax, ay, aw, ah = a.bbox_col_row_w_h
+    bx, by, bw, bh = b.bbox_col_row_w_h
+    gap_col = max(bx - (ax + aw), ax - (bx + bw), 0)
+    gap_row = max(by - (ay + ah), ay - (by + bh), 0)
+    return max(gap_col, gap_row)
+
+
+def _piece_of_crescent(blob: Blob, didymos: Blob, cfg: ImagingConfig) -> bool:
+    """Return whether ``blob`` may be a piece of Didymos's thin crescent broken off at the threshold: Didymos is
+    elongated and the blob lies within a few pixels of its box."""
+    return didymos.elongation >= cfg.crescent_min_elongation and _box_gap_px(blob, didymos) <= cfg.crescent_gap_px
+
+
 def _largest(blobs: list[Blob]) -> Blob:
     """Return the blob of largest core area, the larger region then the brighter peak breaking ties."""
     return max(blobs, key=lambda b: (b.core_area_px, b.area_px, b.peak_dn8, -b.label))
@@ -402,12 +418,18 @@ def _largest(blobs: list[Blob]) -> Blob:
 
 def reference_pair(previous: Detections | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
     """Return the (didymos, dimorphos) that continuity refers to: the previous frame's pair, or the last pair seen
-    when the frames since saw no Dimorphos, for at most ``cfg.pair_memory_frames`` frames; else (None, None)."""
+    when the frames since saw no Dimorphos, for at most ``cfg.pair_memory_frames`` frames and while Didymos is at
+    most ``cfg.pair_memory_max_didymos_px`` across (far enough for the offset to change slowly); else (None, None)."""
     if previous is None:
         return None, None
     if previous.didymos is not None and previous.dimorphos is not None:
         return previous.didymos, previous.dimorphos
-    if previous.dimorphos is None and previous.pair is not None and previous.pair_age_frames < cfg.pair_memory_frames:
+    if (
+        previous.dimorphos is None
+        and previous.pair is not None
+        and previous.pair_age_frames < cfg.pair_memory_frames
+        and previous.pair[0].diameter_px <= cfg.pair_memory_max_didymos_px
+    ):
         return previous.pair
     return None, None
 
@@ -464,6 +486,7 @@ def identify_bodies(
         if b is not didymos
         and b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
         and _separation(b, didymos.centroid_col_row) <= gate
+        and not _piece_of_crescent(b, didymos, cfg)
     ]
     if prev_did is not None and prev_dim is not None:
         predicted = _relative(prev_dim, prev_did)

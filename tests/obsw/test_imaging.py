@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -470,3 +471,86 @@ def test_camera_worst_case_flyby_with_plume() -> None:
         assert math.dist(det.didymos.centroid_col_row, truth["did"]) <= max(0.5 * truth["did_r"], 1.5)
         x, y, w, h = det.dimorphos.bbox_col_row_w_h
         assert x - 1 <= truth["dim"][0] <= x + w and y - 1 <= truth["dim"][1] <= y + h
+
+
+def test_dimorphos_centroid_within_15_px_of_the_truth_with_the_plume_on() -> None:
+    """Scenario universe (plume, noise, 1 mrad jitter) from C/A-150 s, when the dense ejecta surround a Dimorphos
+    a few pixels across, to C/A-80 s and around C/A: every blob equals OpenCV's, and every reported Dimorphos
+    centroid is within the paper's 15 px of the true projection of its centre (reported in most frames)."""
+    uc = UniverseConfig()
+    ca = uc.flyby.ca_time_s
+    plume_window = np.arange(ca - 150.0, ca - 80.0, 3.0)
+    near_ca = np.arange(ca - 12.0, ca + 48.0, 3.0)
+    reported = 0
+    for times, seed in ((plume_window, 23), (near_ca, 24)):
+        for det, ref, truth in _flyby_run(uc, times, seed=seed, jitter_rad=1e-3):
+            _assert_blobs_equal_reference(det, ref)
+            if det.dimorphos is not None:
+                reported += times is plume_window
+                assert math.dist(det.dimorphos.centroid_col_row, truth["dim"]) <= 15.0
+    assert reported >= 0.8 * plume_window.size
+
+
+def test_core_centroid_leaves_the_ejecta_out() -> None:
+    """A small body at the apex of a fan as bright as its surface: the region centroid is pulled along the fan,
+    the core centroid (pixels at 0.65 of the peak) stays within a pixel of the body's centre."""
+    body = SyntheticBody(500.0, 520.0, 3.0, 2500.0)
+    frame = synthetic_frame(
+        np.random.default_rng(7), bodies=(body,), sun_camera=(0.0, 0.0, -1.0), n_stars=0, n_hot_pixels=0,
+        plume_from=0, plume_peak_dn=1500.0, plume_length_px=60.0, plume_axis_deg=0.0,
+    )
+    det = process_frame(frame, CFG)
+    assert det.didymos is not None
+    truth = _truth_512(body)
+    assert det.didymos.region_centroid_col_row[0] - truth[0] > 4.0  # pulled along the fan (+col)
+    assert math.dist(det.didymos.centroid_col_row, truth) <= 1.0
+
+
+def test_last_pair_bridges_frames_without_dimorphos() -> None:
+    """After frames where Dimorphos merged (not seen), the last pair still tells Didymos from a plume-inflated
+    Dimorphos with the larger core; once the memory is older than pair_memory_frames, the larger core wins."""
+    did_then = _blob(1, 260.0, 256.0, 40, 7)
+    dim_then = _blob(2, 249.0, 256.0, 6, 3)
+    merged = _detections(_blob(1, 257.0, 256.0, 120, 20), None)
+    did = _blob(1, 261.0, 257.0, 40, 7)
+    dim_plume = _blob(2, 250.0, 256.5, 60, 8)  # Dimorphos and its ejecta: larger than Didymos
+    for age in range(CFG.pair_memory_frames):
+        prev = dataclasses.replace(merged, pair=(did_then, dim_then), pair_age_frames=age)
+        assert identify_bodies([did, dim_plume], CFG, prev) == (did, dim_plume)
+    stale = dataclasses.replace(merged, pair=(did_then, dim_then), pair_age_frames=CFG.pair_memory_frames)
+    assert identify_bodies([did, dim_plume], CFG, stale) == (dim_plume, None)
+
+
+def test_a_piece_of_didymos_crescent_is_not_dimorphos() -> None:
+    """Two pieces of a thin crescent (areas 9 and 4) are Didymos and nothing: a first-found Dimorphos is at most
+    dimorphos_max_area_fraction of Didymos (the real ratio is 0.044); at 2 px the small one is Dimorphos."""
+    piece = _blob(1, 227.4, 257.6, 9, 8)
+    other = _blob(2, 226.8, 250.5, 4, 4)
+    assert identify_bodies([piece, other], CFG) == (piece, None)
+    small = _blob(2, 226.8, 250.5, 2, 2)
+    assert identify_bodies([piece, small], CFG) == (piece, small)
+
+
+def test_a_blob_beside_a_thin_crescent_is_a_piece_of_it() -> None:
+    """A 2 px blob 1 px beyond the end of a thin Didymos crescent (elongation 6) is not Dimorphos; 10 px away it
+    is, and beside a round Didymos it is."""
+    crescent = Blob(1, 12, (226.7, 255.8), (226, 251, 2, 10), 53.0, 55, 6.2, 50, 12, (226.7, 255.8))
+    piece = _blob(2, 225.0, 262.5, 2, 2)
+    assert identify_bodies([crescent, piece], CFG) == (crescent, None)
+    apart = _blob(2, 225.0, 272.5, 2, 2)
+    assert identify_bodies([crescent, apart], CFG) == (crescent, apart)
+    round_did = dataclasses.replace(crescent, elongation=1.2)
+    assert identify_bodies([round_did, piece], CFG) == (round_did, piece)
+
+
+def test_last_pair_is_not_remembered_near_closest_approach() -> None:
+    """A remembered pair whose Didymos spanned more than pair_memory_max_didymos_px does not gate the next frame."""
+    did_then = _blob(1, 260.0, 256.0, 2000, 60)
+    dim_then = _blob(2, 200.0, 256.0, 90, 12)
+    prev = dataclasses.replace(_detections(_blob(1, 250.0, 256.0, 2200, 62), None), pair=(did_then, dim_then))
+    assert CFG.pair_memory_max_didymos_px < 60
+    big_plume = _blob(1, 205.0, 256.0, 2500, 70)  # a plume core larger than Didymos, where Dimorphos was
+    did = _blob(2, 262.0, 256.0, 2100, 60)
+    assert identify_bodies([big_plume, did], CFG, prev)[0] is big_plume
+    near = dataclasses.replace(prev, pair=(dataclasses.replace(did_then, bbox_col_row_w_h=(230, 226, 18, 18)), dim_then))
+    assert identify_bodies([big_plume, did], CFG, near)[0] is did
