@@ -507,7 +507,7 @@ class _BodyCaster:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rays through pixel centres (1-D arrays): indices of those hitting the body, their depth (m), signal (e-/s).
 
-        ``depth_guess`` (m, NaN for none) starts the intersection of those rays one pixel width in front of it.
+        ``depth_guess`` (m, NaN for none) starts the intersection of those rays a quarter pixel width in front of it.
         """
         distf = np.float32(self.dist)
         dx = (cols.astype(np.float32) - np.float32(self.cx)) * np.float32(1.0 / self.f)
@@ -535,8 +535,8 @@ class _BodyCaster:
         rays = (-distf * de3 * de1, -distf * de3 * de2, distf * sin2, de1, de2, de3, b2)
         warm = None
         if depth_guess is not None:
-            warm = -distf * de3 - depth_guess[cand[sel]].astype(np.float32) + np.float32(self.dist / self.f)
-        # first guess: a sphere as wide as the limb in this direction
+            warm = -distf * de3 - depth_guess[cand[sel]].astype(np.float32) + np.float32(0.25 * self.dist / self.f)
+        # first guess: a sphere as wide as the limb in this direction (or a quarter pixel in front of the neighbours)
         h, normal = self._intersect(rays, np.sqrt(np.maximum(rho_limb * rho_limb - b2, np.float32(0.0))), warm)
         n1, n2, n3 = normal
         depth = -distf * de3 - h
@@ -640,18 +640,11 @@ def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
     """
     if step not in (1, 2, 4, 8, 16, 32):
         raise RenderError(f"upsampled_nodes: step must be a power of two up to 32, got {step}")
-    map_x, map_y = _node_maps(step, -(-h // 256) * 256, -(-w // 256) * 256)
-    return cv2.remap(nodes, map_x[:h, :w], map_y[:h, :w], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-
-
-@lru_cache(maxsize=16)
-def _node_maps(step: int, h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
-    """``cv2.remap`` maps (h, w) from pixels to the coordinates of a grid with a node every ``step`` px."""
-    map_x = np.broadcast_to((np.arange(w) / step).astype(np.float32), (h, w)).copy()
-    map_y = np.broadcast_to((np.arange(h) / step).astype(np.float32)[:, None], (h, w)).copy()
-    map_x.setflags(write=False)
-    map_y.setflags(write=False)
-    return map_x, map_y
+    map_x = np.empty((h, w), dtype=np.float32)
+    map_y = np.empty((h, w), dtype=np.float32)
+    map_x[:] = (np.arange(w) / step).astype(np.float32)
+    map_y[:] = (np.arange(h) / step).astype(np.float32)[:, None]
+    return cv2.remap(nodes, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _bilinear_at(
