@@ -15,12 +15,17 @@ Emulates the LICIACube pipeline (paper, "Imaging Subsystem"): steps 1-3 are the 
    the threshold (OpenCV THRESH_BINARY semantics).
 3. Object detection: 8-connected component labelling by run-length encoding and a vectorised union-find of
    overlapping runs of adjacent rows; labels are numbered in raster order of each component's first pixel.
-4. Feature extraction and identification: area, binary centroid (mean pixel position, pixel centres at
+4. Feature extraction and identification: area, region centroid (mean pixel position, pixel centres at
    integer coordinates, as OpenCV's connectedComponentsWithStats), bounding box, second-moment elongation,
    mean and peak 8-bit brightness of every blob. A large blob whose pixels are mostly faint (the ejecta plume,
    possibly merged with the bodies) is replaced by its cores above the Otsu threshold of its own pixels
-   (``split_diffuse_blobs``). Then Didymos and Dimorphos are told from stars, hot pixels and the plume by area,
-   compactness, brightness, geometry and continuity with the previous frame (see ``identify_bodies``).
+   (``split_diffuse_blobs``). Each blob's position (``Blob.centroid_col_row``) is the binary centroid of its
+   core, its pixels at or above ``core_peak_fraction`` of its peak above the background (``core_level_dn8``):
+   a lit surface keeps most of its pixels, while the dense ejecta leaving Dimorphos, which make its blob
+   several times larger than the body a few pixels across, are fainter and stay out, so the position is not
+   pulled along the plume. Then Didymos and Dimorphos are told from stars, hot pixels, the plume and pieces of
+   a thin crescent by core area, compactness, brightness, geometry and continuity with the last frame that saw
+   both (see ``identify_bodies``); when in doubt, Dimorphos is not reported rather than a wrong body.
 
 Image x (columns) is body +X, image y (rows) body +Y, the boresight body +Z; the image centre is at
 ((n - 1) / 2, (n - 1) / 2) in pixel-centre coordinates of the n x n binned image.
@@ -440,7 +445,10 @@ def identify_bodies(
     """Return (didymos, dimorphos) among the blobs, either None when not seen.
 
     Body candidates are blobs of at least ``min_body_area_px`` (rejects hot pixels, noise and faint stars) and
-    at most ``max_body_elongation`` (rejects plume rays and smeared stars).
+    at most ``max_body_elongation`` (rejects plume rays and smeared stars). "Largest" ranks by core area (see
+    ``core_level_dn8``), so Dimorphos inflated by its ejecta does not outgrow Didymos. "Previous" is the pair of
+    ``reference_pair``: the previous frame's, or the last seen together, across frames where Dimorphos was not
+    seen (merged with Didymos and its ejecta), while they are far.
     Didymos is the largest candidate, unless the previous frame saw both bodies and this candidate continues
     Dimorphos with Didymos out of the field: its area is nearer the previous Dimorphos area than the previous
     Didymos one (in ratio) and the previous Didymos-to-Dimorphos offset puts Didymos's centre outside the image
@@ -450,7 +458,8 @@ def identify_bodies(
     does not change.
     Dimorphos is a smaller candidate (area at most ``dimorphos_max_area_fraction`` of Didymos, peak at least
     ``dimorphos_min_peak_fraction`` of Didymos's) within ``dimorphos_max_separation_didymos_diameters`` of
-    Didymos; among those, the one whose offset from Didymos continues the previous one (stars move relative to
+    Didymos and not a piece of its thin crescent (``crescent_gap_px`` of a Didymos at least
+    ``crescent_min_elongation``); among those, the one whose offset from Didymos continues the previous one (stars move relative to
     Didymos at the tracking rate; this one may exceed the area limit), else the largest. A core cut out of the
     plume may also exceed it, and is gated by its box rather than its centroid: the ejecta leave Dimorphos, so
     after the impact its blob is Dimorphos with the dense ejecta around it, and its centroid is their common
