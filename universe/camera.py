@@ -596,22 +596,28 @@ class _BodyCaster:
         tol = np.float32(1e-4) * radius
         for it in range(_RAY_ITERATIONS):
             g, slope, n1, n2, n3 = surface(act, h_a)
-            normal[0, active], normal[1, active], normal[2, active] = n1, n2, n3
             outside = g > 0
             hi_a = np.where(outside, h_a, hi_a)
             lo_a = np.where(outside, lo_a, h_a)
             step = h_a - g / np.maximum(slope, np.float32(1e-6))
             h_a = np.where((step > lo_a) & (step < hi_a), step, np.float32(0.5) * (lo_a + hi_a))
-            h[active] = h_a
-            if it + 1 < _RAY_ITERATIONS:
-                # rays already on the surface (|g| below 0.1 mm per metre of radius) are done
-                keep = np.flatnonzero(np.abs(g) > tol)
-                if keep.size == 0:
-                    break
-                if keep.size < active.size:
-                    active = active[keep]
-                    act = act[:, keep]
-                    h_a, lo_a, hi_a = h_a[keep], lo_a[keep], hi_a[keep]
+            # rays on the surface (|g| below 0.1 mm per metre of radius) are done; the rest go on while they are
+            # many (dropping a few costs more than stepping them once more)
+            done = np.abs(g) <= tol if it + 1 < _RAY_ITERATIONS else np.ones(g.shape, dtype=bool)
+            n_done = int(np.count_nonzero(done))
+            if n_done == g.size:
+                normal[:, active] = (n1, n2, n3)
+                h[active] = h_a
+                break
+            if n_done > g.size // 8:
+                fin = np.flatnonzero(done)
+                at = active[fin]
+                normal[:, at] = (n1[fin], n2[fin], n3[fin])
+                h[at] = h_a[fin]
+                keep = np.flatnonzero(~done)
+                active = active[keep]
+                act = act[:, keep]
+                h_a, lo_a, hi_a = h_a[keep], lo_a[keep], hi_a[keep]
         normal *= np.float32(1.0) / np.sqrt(np.sum(normal * normal, axis=0))
         return h, normal
 
