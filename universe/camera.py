@@ -637,9 +637,9 @@ def grid_step_px(diameter_px: float) -> int:
     return 2 if diameter_px < _COARSE_MIN_PX else 4
 
 
-def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
-    """Bilinear interpolation of node values (n, m) float32 at pixels (h, w) of a grid with a node every ``step`` px:
-    node (i, j) sits on pixel (step i, step j); pixels beyond the last node take its value.
+def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int, r0: int = 0, c0: int = 0) -> np.ndarray:
+    """Bilinear interpolation of node values (n, m) float32 at pixels [r0, r0 + h) x [c0, c0 + w) of a grid with a
+    node every ``step`` px: node (i, j) sits on pixel (step i, step j); pixels beyond the last node take its value.
 
     ``cv2.remap`` with maps at exact multiples of 1/step (a power of two up to 32, so its 1/32 px fixed-point
     weights are exact) does the interpolation.
@@ -648,8 +648,8 @@ def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
         raise RenderError(f"upsampled_nodes: step must be a power of two up to 32, got {step}")
     map_x = np.empty((h, w), dtype=np.float32)
     map_y = np.empty((h, w), dtype=np.float32)
-    map_x[:] = (np.arange(w) / step).astype(np.float32)
-    map_y[:] = (np.arange(h) / step).astype(np.float32)[:, None]
+    map_x[:] = (np.arange(c0, c0 + w) / step).astype(np.float32)
+    map_y[:] = (np.arange(r0, r0 + h) / step).astype(np.float32)[:, None]
     return cv2.remap(nodes, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
@@ -712,7 +712,7 @@ def _cast_body(
     f: float,
     cx: float,
     cy: float,
-    need_depth: bool = True,
+    depth_window: tuple[int, int, int, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Ray-cast one body over its box: depth (m, inf where the body is not hit) and signal (e-/s), both (h, w).
 
@@ -721,7 +721,8 @@ def _cast_body(
     same side of the terminator) are interpolated bilinearly, the shading being smooth there; the other cells that
     touch the body are cast on the grid twice as fine, and those still not smooth on the 2 px grid (limb, occluding
     edges) at every pixel. Rays with cast neighbours start their intersection from the neighbours' depth.
-    Without ``need_depth`` the depth of interpolated pixels is 0 (only whether they hit is kept).
+    Interpolated pixels get their depth inside ``depth_window`` (r0, r1, c0, c1 within the box: where other bodies
+    may be in front or behind) and 0 elsewhere (only whether they hit is kept); cast pixels always get theirs.
     """
     r0, r1, c0, c1 = view.box
     h, w = r1 - r0, c1 - c0
@@ -761,12 +762,20 @@ def _cast_body(
             px = _cells_to_pixels(smooth, k, h, w)
             if region is None:  # the first grid: most of the box, interpolated in one pass
                 cv2.copyTo(upsampled_nodes(n_sig, k, h, w), px, sig)
-                cv2.copyTo(upsampled_nodes(n_depth, k, h, w) if need_depth else np.zeros_like(sig), px, depth)
+                cv2.copyTo(np.zeros_like(sig), px, depth)
+                if depth_window is not None:
+                    wr0, wr1, wc0, wc1 = depth_window
+                    win = (slice(wr0, wr1), slice(wc0, wc1))
+                    cv2.copyTo(upsampled_nodes(n_depth, k, wr1 - wr0, wc1 - wc0, wr0, wc0), px[win], depth[win])
             else:  # a finer grid: a band of cells, interpolated where they are
                 at = np.flatnonzero(px)
                 py, pxx = at // w, at % w
                 sig.reshape(-1)[at] = _bilinear_at(hit, n_sig, k, py, pxx)[0]
-                depth.reshape(-1)[at] = _bilinear_at(hit, n_depth, k, py, pxx)[0] if need_depth else 0.0
+                depth.reshape(-1)[at] = 0.0
+                if depth_window is not None:
+                    wr0, wr1, wc0, wc1 = depth_window
+                    inw = np.flatnonzero((py >= wr0) & (py < wr1) & (pxx >= wc0) & (pxx < wc1))
+                    depth.reshape(-1)[at[inw]] = _bilinear_at(hit, n_depth, k, py[inw], pxx[inw])[0]
         if k == 2 or not refine.any():
             break
         # the grid twice as fine: its even nodes are this grid's, the others are cast around the refined cells
@@ -804,6 +813,19 @@ def _cast_body(
     depth.reshape(-1)[rough_px[hit_r]] = depth_r
     sig.reshape(-1)[rough_px[hit_r]] = sig_r
     return depth, sig
+
+
+def _overlap(view: _BodyView, members: list[_BodyView]) -> tuple[int, int, int, int] | None:
+    """Bounding box, relative to ``view``'s box, of where the other members' boxes overlap it (None: nowhere)."""
+    r0, r1, c0, c1 = view.box
+    parts = [
+        (max(r0, b[0]) - r0, min(r1, b[1]) - r0, max(c0, b[2]) - c0, min(c1, b[3]) - c0)
+        for b in (m.box for m in members if m is not view)
+    ]
+    parts = [p for p in parts if p[0] < p[1] and p[2] < p[3]]
+    if not parts:
+        return None
+    return min(p[0] for p in parts), max(p[1] for p in parts), min(p[2] for p in parts), max(p[3] for p in parts)
 
 
 @dataclass
@@ -1211,7 +1233,7 @@ def _scene_electrons(
         depth: np.ndarray | None = None
         for v in cluster.members:
             vr0, vr1, vc0, vc1 = v.box
-            dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy, need_depth=len(cluster.members) > 1)
+            dep, sig = _cast_body(v, c2i, sun_c, cfg, f, cx, cy, _overlap(v, cluster.members))
             if depth is None and v.box == cluster.box:
                 depth, rad = dep, sig
                 continue
