@@ -6,9 +6,9 @@ Geometries of the scenario's flyby with perfect pointing (``universe.render.Perf
 ``bench/universe.py``: far (Didymos ~10 px, before the impact), mid (~60 px, plume over half the frame), C/A
 (~290 px, plume) and C/A - 20 s (~130 px). For each, the median of ``render_frame`` (the scene built once
 outside the timing) and of its scene part alone (``scene_electrons``: bodies, plume, stars, optics); the detector
-part (noise draws and digitisation) is the difference. Issue 3's target is 15 ms per frame; the reference
-measured in the same run is drawing one 1024x1024 float32 frame of standard normals with numpy (14.5 ms on the
-machine the target was set on), so ``ratio <= 1`` meets the target whatever the load of the machine.
+part (noise draws and digitisation) is the difference. Issue 3's target is 15 ms per frame; the reference is
+drawing one frame of float32 standard normals with numpy (14.5 ms on the machine the target was set on), timed
+alternately with the renders, so ``ratio <= 15 / 14.5`` meets the target whatever the load of the machine.
 """
 
 from __future__ import annotations
@@ -50,14 +50,16 @@ def time_for_didymos_size_s(scenario: Scenario, size_px: float) -> float:
     return u.flyby.ca_time_s - along / (u.flyby.speed_km_s * 1e3)
 
 
-def median_ms(fn: Callable[[], object], n: int) -> float:
-    """Median wall time of ``n`` calls of ``fn``, ms."""
-    times = []
+def median_ms(*fns: Callable[[], object], n: int) -> list[float]:
+    """Median wall time of ``n`` calls of each of ``fns``, ms; the calls alternate, so a change in the machine's
+    load weighs on all of them alike."""
+    times: list[list[float]] = [[] for _ in fns]
     for _ in range(n):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times) * 1e3
+        for fn, out in zip(fns, times):
+            t0 = time.perf_counter()
+            fn()
+            out.append(time.perf_counter() - t0)
+    return [statistics.median(t) * 1e3 for t in times]
 
 
 def main() -> None:
@@ -75,7 +77,7 @@ def main() -> None:
     cam = PerfectPointingCamera(scenario)
     rng = np.random.default_rng(0)
     side = cfg.resolution_px
-    ref_ms = median_ms(lambda: rng.standard_normal((side, side), dtype=np.float32), args.frames)
+    (ref_ms,) = median_ms(lambda: rng.standard_normal((side, side), dtype=np.float32), n=args.frames)
     print(f"{side}x{side} frames, median of {args.frames}, one thread; reference numpy normal frame {ref_ms:.2f} ms")
     print(f"{'geometry':10s} {'t s':>7s} {'Didymos px':>10s} {'render ms':>10s} {'scene ms':>9s} {'detector ms':>11s} "
           f"{'ratio':>6s}")
@@ -89,13 +91,17 @@ def main() -> None:
         cam.frame_at(t)  # aims the universe at this geometry
         scene = scene_at(cam.universe, cfg.exposure_s)
         frame = render_frame(scene, cfg, u.plume, rng)  # warms the caches (shape tables, star cells, buffers)
-        render = median_ms(lambda: render_frame(scene, cfg, u.plume, rng), args.frames)
-        part = median_ms(lambda: scene_electrons(scene, cfg, u.plume), args.frames)
+        ref, render, part = median_ms(
+            lambda: rng.standard_normal((side, side), dtype=np.float32),
+            lambda: render_frame(scene, cfg, u.plume, rng),
+            lambda: scene_electrons(scene, cfg, u.plume),
+            n=args.frames,
+        )
         g = cam.universe.geometry
         size_px = u.bodies.didymos_diameter_m * f / float(np.linalg.norm(g.didymos_position_m(t) - g.spacecraft_position_m(t)))
-        verdict = "within" if render / ref_ms <= RENDER_TARGET_MS / 14.5 else "over"
+        verdict = "within" if render / ref <= RENDER_TARGET_MS / 14.5 else "over"
         print(f"{name:10s} {t:+7.1f} {size_px:10.0f} {render:10.2f} {part:9.2f} {render - part:11.2f} "
-              f"{render / ref_ms:6.2f}  ({verdict} the target)")
+              f"{render / ref:6.2f}  ({verdict} the target; reference {ref:.2f} ms alongside)")
         if args.save:
             from PIL import Image
 
