@@ -98,7 +98,8 @@ def main() -> None:
             n=args.frames,
         )
         g = cam.universe.geometry
-        size_px = u.bodies.didymos_diameter_m * f / float(np.linalg.norm(g.didymos_position_m(t) - g.spacecraft_position_m(t)))
+        range_m = float(np.linalg.norm(g.didymos_position_m(t) - g.spacecraft_position_m(t)))
+        size_px = u.bodies.didymos_diameter_m * f / range_m
         verdict = "within" if render / ref <= RENDER_TARGET_MS / 14.5 else "over"
         print(f"{name:10s} {t:+7.1f} {size_px:10.0f} {render:10.2f} {part:9.2f} {render - part:11.2f} "
               f"{render / ref:6.2f}  ({verdict} the target; reference {ref:.2f} ms alongside)")

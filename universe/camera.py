@@ -435,7 +435,8 @@ def _body_box(
     cx_m, cy_m, cz_m = float(centre_c[0]), float(centre_c[1]), float(centre_c[2])
     den = cz_m * cz_m - r_max * r_max
     if cz_m > 0 and den > 1e-6 * dist * dist:
-        # whole sphere in front: tangent planes x - u z = 0 at distance r_max give u = (a c +- r sqrt(a^2 + c^2 - r^2)) / den
+        # whole sphere in front: the tangent planes x - u z = 0 (distance r_max from the centre (a, ., c)) give
+        # u = (a c +- r sqrt(a^2 + c^2 - r^2)) / (c^2 - r^2), and likewise for rows
         ru = r_max * math.sqrt(cx_m * cx_m + den)
         rv = r_max * math.sqrt(cy_m * cy_m + den)
         u0, u1 = (cx_m * cz_m - ru) / den, (cx_m * cz_m + ru) / den

@@ -535,7 +535,8 @@ def test_frame_moments_follow_the_detector_model_pixel_by_pixel(range_m: float) 
     body = Body(np.array([30.0, -20.0, range_m]), 390.0, ShapeModel(seed=6))
     s = scene((body,), sun=(0.4, 0.2, -1.0), star_seed=2)
     expected_e = scene_electrons(s, cfg, PlumeConfig())
-    assert (expected_e > 100).mean() == (pytest.approx(0.01, abs=0.01) if range_m > 1e5 else pytest.approx(1.0, abs=0.1))
+    lit = (expected_e > 100).mean()
+    assert lit < 0.02 if range_m > 1e5 else lit > 0.9  # a small box / the whole frame
     frame = render_frame(s, cfg, PlumeConfig(), np.random.default_rng(21)).astype(float)
     dark_e = cfg.dark_current_e_s * 0.01
     g = cfg.gain_e_per_dn
