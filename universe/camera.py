@@ -1108,7 +1108,7 @@ def _scratch(name: str, shape: tuple[int, ...]) -> np.ndarray:
     return buf[:n].reshape(shape)
 
 
-_BAND_ROWS = 32  # rows digitised at a time: the work buffers of a band stay in the core's cache
+_BAND_ROWS = 128  # rows digitised at a time: the work buffers of a band stay in the core's cache
 
 
 def _digitise(
