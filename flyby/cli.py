@@ -47,7 +47,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_render(args: argparse.Namespace) -> int:
     """Validate, then write the frames of perfect pointing as 8-bit PNGs and an animated GIF."""
-    import time
+    from flyby.clock import WallClock
 
     from PIL import Image
 
@@ -69,7 +69,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         print(f"flyby render: {err}", file=sys.stderr)
         return EXIT_CONFIG
     args.out.mkdir(parents=True, exist_ok=True)
-    wall0 = time.perf_counter()
+    clock = WallClock()  # clock.py is the one module that reads the machine's time
+    wall0 = clock.now()
     images = []
     for i, frame in enumerate(perfect_pointing_frames(scenario, times)):
         img = display_frame(frame.pixels, u.camera.bit_depth, args.size)
@@ -81,7 +82,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     gif = args.out / "render.gif"
     images[0].save(gif, save_all=True, append_images=images[1:], duration=args.gif_frame_ms, loop=0)
     print(f"{len(times)} frames of {scenario.name}, t={times[0]:+.1f}..{times[-1]:+.1f} s every {every_s:g} s, "
-          f"in {time.perf_counter() - wall0:.1f} s: {args.out}/frame_*.png and {gif}")
+          f"in {clock.now() - wall0:.1f} s: {args.out}/frame_*.png and {gif}")
     return 0
 
 
