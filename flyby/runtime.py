@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import queue
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +33,7 @@ class Received:
     blob: bytes
 
 
+EXIT_OK, EXIT_INTERNAL, EXIT_PEER = 0, 1, 3  # process exit codes of a node (2 is an invalid scenario)
 DEPARTURE_GRACE_S = 1.0  # longest wait for the Shutdown of a run that ended normally, after a peer left
 
 
@@ -233,6 +234,29 @@ class Attachment:
                     break
             for entry in kept + rest:
                 self._inbox.put(entry)
+
+    def guarded(self, body: Callable[[], None]) -> tuple[int, bool]:
+        """Run a node's main loop and turn how it ended into (exit code, whether ``body`` ran to its end).
+
+        A peer's failure is logged and, unless it was relayed already, announced to every node; a peer's normal
+        stop is logged; this node's own error is logged with its traceback and announced as an internal error.
+        """
+        try:
+            body()
+        except NodeFailure as failure:
+            self.log.error("%s (last simulated time %s s)", failure, self.sim_time_s)
+            if not isinstance(failure, RelayedFailure):
+                self.shutdown(str(failure), failed=True)
+            return EXIT_PEER, False
+        except PeerStopped as stop:
+            self.log.info("stopped by %s: %s; %d undecodable messages", stop.shutdown.node, stop.shutdown.reason,
+                          self.decode_errors)
+            return EXIT_OK, False
+        except Exception as exc:
+            self.log.exception("internal error")
+            self.shutdown(f"{self.node} internal error: {exc!r}", failed=True)
+            return EXIT_INTERNAL, False
+        return EXIT_OK, True
 
     def close(self) -> None:
         """Withdraw the liveliness token first, so peers see a clean departure before the session closes."""

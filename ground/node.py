@@ -21,7 +21,7 @@ from flyby.clock import WallClock
 from flyby.errors import NodeFailure
 from flyby import pus
 from flyby.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
-from flyby.runtime import Attachment, PeerStopped, RelayedFailure
+from flyby.runtime import EXIT_OK, Attachment
 from flyby.scenario import Scenario
 from ground.archive import Archive
 from ground.report import ReportError, build_report
@@ -31,7 +31,6 @@ from timeline.model import Timeline
 
 log = logging.getLogger("ground")
 
-EXIT_OK, EXIT_INTERNAL, EXIT_PEER = 0, 1, 3
 
 TRUTH_COLUMNS = ("t_s", "obt_s", "qx", "qy", "qz", "qw", "wx_rad_s", "wy_rad_s", "wz_rad_s",
                  "pointing_error_rad", "target_in_fov", "range_m", "theta_rad", "phase_angle_deg")
@@ -192,7 +191,6 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
     segment = GroundSegment(scenario, timeline)
     archive = Archive(out / "archive.sqlite", tm_bin=out / "tm.bin")
     truth = TruthLog(out / "truth.csv")
-    code = EXIT_OK
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "ground", WallClock(), log)
         bus.subscribe(keys.ground_step, GroundStep)
@@ -201,18 +199,7 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
         bus.declare_alive()
         try:
             with open(out / "tc.bin", "wb") as tc_log:
-                run(bus, segment, archive, truth, scenario, tc_log)
-        except NodeFailure as failure:
-            log.error("%s", failure)
-            if not isinstance(failure, RelayedFailure):
-                bus.shutdown(str(failure), failed=True)
-            code = EXIT_PEER
-        except PeerStopped as stop:
-            log.info("stopped by %s: %s", stop.shutdown.node, stop.shutdown.reason)
-        except Exception as exc:
-            log.exception("internal error")
-            bus.shutdown(f"ground internal error: {exc!r}", failed=True)
-            code = EXIT_INTERNAL
+                code, _ = bus.guarded(lambda: run(bus, segment, archive, truth, scenario, tc_log))
         finally:
             bus.close()
     # whatever happened, keep what was received: write the summary, then close the archive

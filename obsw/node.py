@@ -16,13 +16,12 @@ from flyby.bus import Keys
 from flyby.clock import WallClock
 from flyby.errors import NodeFailure
 from flyby.messages import StepReply, StepRequest
-from flyby.runtime import Attachment, PeerStopped, RelayedFailure
+from flyby.runtime import Attachment
 from flyby.scenario import Scenario
 from obsw.software import FlightSoftware
 
 log = logging.getLogger("obsw")
 
-EXIT_OK, EXIT_INTERNAL, EXIT_PEER = 0, 1, 3
 
 
 def frame_pixels(req: StepRequest, blob: bytes) -> np.ndarray | None:
@@ -84,20 +83,6 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str) -> int:
         bus.declare_alive()
         fsw = FlightSoftware(scenario.obsw, scenario.universe.spacecraft, scenario.universe.camera)
         try:
-            run(bus, fsw, scenario)
-        except NodeFailure as failure:
-            log.error("%s (last on-board time %s s)", failure, bus.sim_time_s)
-            if not isinstance(failure, RelayedFailure):
-                bus.shutdown(str(failure), failed=True)
-            return EXIT_PEER
-        except PeerStopped as stop:
-            log.info("stopped by %s: %s; %d undecodable messages", stop.shutdown.node, stop.shutdown.reason,
-                     bus.decode_errors)
-            return EXIT_OK
-        except Exception as exc:
-            log.exception("internal error")
-            bus.shutdown(f"obsw internal error: {exc!r}", failed=True)
-            return EXIT_INTERNAL
+            return bus.guarded(lambda: run(bus, fsw, scenario))[0]
         finally:
             bus.close()
-    return EXIT_OK

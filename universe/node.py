@@ -15,16 +15,14 @@ import zenoh
 
 from flyby.bus import Keys
 from flyby.clock import Clock, WallClock
-from flyby.errors import NodeFailure
 from flyby.messages import GroundReply, StepReply
-from flyby.runtime import Attachment, PeerStopped, RelayedFailure
+from flyby.runtime import Attachment
 from flyby.scenario import Scenario
 from universe.camera import frame_to_png8
 from universe.simulator import Universe
 
 log = logging.getLogger("universe")
 
-EXIT_OK, EXIT_INTERNAL, EXIT_CONFIG, EXIT_PEER = 0, 1, 2, 3
 
 
 class FrameWriter:
@@ -95,27 +93,22 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, realtim
         bus.subscribe(keys.ground_reply, GroundReply)
         bus.watch_peers()
         bus.declare_alive()
+        made: list[Universe] = []
+
+        def body() -> None:  # building the simulator is inside: a bad geometry is reported like any error
+            made.append(Universe(scenario))
+            frames = FrameWriter(out / "frames", scenario.universe.save_frames_every,
+                                 scenario.universe.camera.bit_depth)
+            run(bus, made[0], scenario, realtime, WallClock(), frames)
+
         try:
-            sim = Universe(scenario)
-            frames = FrameWriter(out / "frames", scenario.universe.save_frames_every, scenario.universe.camera.bit_depth)
-            run(bus, sim, scenario, realtime, WallClock(), frames)
-        except NodeFailure as failure:
-            log.error("%s", failure)
-            if not isinstance(failure, RelayedFailure):
-                bus.shutdown(str(failure), failed=True)
-            return EXIT_PEER
-        except PeerStopped as stop:
-            log.info("stopped by %s: %s", stop.shutdown.node, stop.shutdown.reason)
-            return EXIT_OK if not stop.shutdown.failed else EXIT_PEER
-        except Exception as exc:
-            log.exception("internal error")
-            bus.shutdown(f"universe internal error: {exc!r}", failed=True)
-            return EXIT_INTERNAL
-        else:
-            log.info("run complete at t=%.1f s (%d steps); %d undecodable messages", sim.t_s, sim.step,
-                     bus.decode_errors)
-            bus.shutdown("run complete", failed=False)
-            bus.wait_until_gone(["obsw", "ground"], timeout_s=scenario.bus.reply_timeout_s * 6)
-            return EXIT_OK
+            code, finished = bus.guarded(body)
+            if finished:
+                sim = made[0]
+                log.info("run complete at t=%.1f s (%d steps); %d undecodable messages", sim.t_s, sim.step,
+                         bus.decode_errors)
+                bus.shutdown("run complete", failed=False)
+                bus.wait_until_gone(["obsw", "ground"], timeout_s=scenario.bus.reply_timeout_s * 6)
+            return code
         finally:
             bus.close()
