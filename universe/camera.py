@@ -6,16 +6,17 @@ Model, in the order the light goes through it:
   ``((W-1)/2, (H-1)/2)``, boresight ``CameraConfig.boresight_body`` (body +Z by default); image columns increase
   along camera +X (body +X by default), rows along camera +Y.
 - Bodies: star-shaped irregular surfaces (``universe.shapes``) ray-cast inside the bounding box of each body's
-  projected bounding sphere only. Per frame and body, radius and normal are tabulated over the stereographic
-  projection of the directions seen from the camera; the silhouette is exact (up to sampling): the largest
-  perspective-projected radius of the surface slice in each image polar-angle bin. Rays inside it get their front
-  intersection by safeguarded Newton steps on ``|x| - r(u)`` along the ray (bilinear look-ups with OpenCV
-  ``remap``). Bodies wider than 48 px are cast as a quadtree: on a 4 px grid first (96 px and wider) or a 2 px
-  grid; cells whose corners all hit at similar depths (on the 4 px grid: facing the camera, emission cosine above
-  ~0.5, and all on one side of the terminator) are interpolated bilinearly (smooth shading), the other cells
-  touching the body are cast on the grid twice as fine, and the 2 px cells still not smooth (limb, grazing or
-  occluding edges) at every pixel; rays with cast neighbours start their Newton steps from the neighbours' depth.
-  Bodies whose boxes overlap are composited by depth (occultation); cast shadows are not modelled.
+  projected bounding sphere only, by the compiled kernel ``universe.raycast``. Per frame and body, radius and normal
+  are tabulated over the stereographic projection of the directions seen from the camera; the silhouette is exact
+  (up to sampling): the largest perspective-projected radius of the surface slice in each image polar-angle bin.
+  Rays inside it get their front intersection by safeguarded Newton steps on ``|x| - r(u)`` along the ray
+  (bilinear look-ups in the table). Bodies wider than 48 px are cast as a quadtree: on a 4 px grid first (96 px and
+  wider) or a 2 px grid; cells whose corners all hit at similar depths (on the 4 px grid: facing the camera,
+  emission cosine above ~0.5, and all on one side of the terminator) are interpolated bilinearly (smooth shading),
+  the other cells touching the body are cast on the grid twice as fine, and the 2 px cells still not smooth (limb,
+  grazing or occluding edges) at every pixel; rays with cast neighbours start their Newton steps from the
+  neighbours' depth. Bodies whose boxes overlap are composited by depth (occultation); cast shadows are not
+  modelled.
 - Photometry: lunar-Lambert law (McEwen 1991) ``L * 2 mu0 / (mu0 + mu) + (1 - L) * mu0``, a Lommel-Seeliger
   (single scattering, right for dark regolith: uniform disc at zero phase, sharp terminator) plus a Lambert part
   weighted by ``lommel_seeliger_weight``, times a linear-magnitude phase darkening ``10^(-0.4 * slope * alpha)``.
@@ -36,12 +37,13 @@ Model, in the order the light goes through it:
   +-4.3 sigma): about 5x faster than ``Generator.standard_normal`` and distributed the same within that
   resolution. Pixels outside the boxes holding bodies and plume (and off stars and hot pixels) are digitised by
   a per-run table from code to DN, the same arithmetic as with signal; the boxes, or the whole frame when they
-  cover most of it, by OpenCV element-wise passes a band of rows at a time.
-
-Speed (issue 3: one 1024x1024 frame in about the time numpy takes to draw a frame of normals, on one core): work
-buffers are reused per thread, star sets are cached per boresight bin, the plume is integrated on 64x64 nodes.
+  cover most of it, by the compiled kernel ``universe.readout`` in one pass.
 - Faults: ``saturated`` gives a frame at full scale; ``blank`` gives a dark frame (no light from the scene:
   bias, dark current, read noise and hot pixels only).
+
+Speed (issue 3: one 1024x1024 frame in at most 15 ms on one core): the per-ray and per-pixel loops are compiled
+with Numba (``universe.raycast``, ``universe.readout``; ``warm_up`` compiles them or loads them from their cache),
+work buffers are reused per thread, star sets are cached per boresight bin, the plume is integrated on 64x64 nodes.
 """
 
 from __future__ import annotations
@@ -57,6 +59,9 @@ from scipy.spatial.transform import Rotation
 from scipy.special import erf, ndtri
 
 from universe.config import CameraConfig, PlumeConfig
+from universe.raycast import TABLE_S as _TABLE_S
+from universe import raycast, readout
+from universe.raycast import cast_body
 from universe.shapes import ShapeModel
 
 
@@ -283,28 +288,7 @@ def psf_kernel(sigma_px: float, smear_px: tuple[float, float]) -> np.ndarray:
 
 _TABLE_MAX = 96  # radius/normal table side at most: 1.9 deg per cell at the limb, finer than any bump
 _TABLE_MIN = 24  # ... and at least (bodies a few pixels across)
-_TABLE_S = 1.5  # stereographic half-extent: directions up to 112 deg from the camera direction
-_RAY_ITERATIONS = 4  # safeguarded Newton steps of the ray/surface intersection, from the bounding sphere inward
 _LIMB_ANGLES = np.deg2rad(np.linspace(50.0, 130.0, 25))  # polar angles from the camera direction searched for the limb
-_REMAP_COLS = 1024  # cv2.remap maps must stay below 32767 per side: 1-D data is folded into rows of this length
-
-
-def _remap_points(table: np.ndarray, mx: np.ndarray, my: np.ndarray) -> np.ndarray:
-    """Bilinear look-up of a (N, N, C) float32 table at 1-D float32 table coordinates: returns (n, C)."""
-    n = mx.size
-    if n == 0:
-        return np.empty((0, table.shape[2]), dtype=table.dtype)
-    if n <= _REMAP_COLS:
-        out = cv2.remap(table, mx.reshape(1, n), my.reshape(1, n), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return out.reshape(n, table.shape[2])
-    rows = -(-n // _REMAP_COLS)
-    mxp = np.zeros(rows * _REMAP_COLS, np.float32)
-    myp = np.zeros(rows * _REMAP_COLS, np.float32)
-    mxp[:n] = mx
-    myp[:n] = my
-    out = cv2.remap(table, mxp.reshape(rows, _REMAP_COLS), myp.reshape(rows, _REMAP_COLS), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_REPLICATE)
-    return out.reshape(rows * _REMAP_COLS, table.shape[2])[:n]
 
 
 def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -338,12 +322,6 @@ def _stereo_directions(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def _table_side(diameter_px: float) -> int:
     """Table side giving about one node per pixel across the visible hemisphere (which spans 2/3 of it)."""
     return int(min(_TABLE_MAX, max(_TABLE_MIN, 16 * math.ceil(1.5 * diameter_px / 16))))
-
-
-def pseudo_angle(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """A cheap increasing function of atan2(y, x) in [0, 4): 0 along +x, 1 along +y, 2 along -x, 3 along -y."""
-    t = x / (np.abs(x) + np.abs(y) + np.float32(1e-30))
-    return 1 - t + (y < 0) * (2 + 2 * t)
 
 
 def _limb_radius(table: np.ndarray, dist: float, perimeter_px: float) -> np.ndarray:
@@ -474,8 +452,8 @@ def _body_box(
 class _BodyCaster:
     """Ray caster of one body in one frame, in the view frame (e3 from the body centre to the camera).
 
-    A unit ray with view components (d1, d2, d3) passes the centre at b = dist * sqrt(d1^2 + d2^2), at the point
-    (-dist d3 d1, -dist d3 d2, dist (d1^2 + d2^2)); ``h`` counts the distance from there towards the camera.
+    Holds the per-frame tables of the body (radius and normal over stereographic view coordinates, limb radius per
+    polar-angle bin); the rays themselves are cast by the compiled kernel ``universe.raycast.cast_rays``.
     """
 
     def __init__(
@@ -486,141 +464,19 @@ class _BodyCaster:
         self.dist = dist = float(np.linalg.norm(p))
         e3 = p / dist
         e1, e2 = _view_basis(e3)
-        self.basis = np.stack([e1, e2, e3]).astype(np.float32)
-        self.f, self.cx, self.cy = f, cx, cy
-        self.r_max = np.float32(view.r_max_m)
-        self.r_min = np.float32(body.radius_m * body.shape.min_radius())
-        self.radius = np.float32(body.radius_m)
+        self.basis = np.stack([e1, e2, e3])
         self.diameter_px = 2.0 * f * view.r_max_m / dist
         n_side = _table_side(self.diameter_px)
         view_to_cam = np.stack([e1, e2, e3], axis=1)
         view_to_ast = Rotation.from_quat(body.q_body_to_inertial).as_matrix().T @ c2i @ view_to_cam
         self.table = _shape_table(body, view_to_ast, n_side)
         self.limb = _limb_radius(self.table, dist, math.pi * self.diameter_px)
-        self.sun_v = (view_to_cam.T @ sun_c).astype(np.float32)
-        self.signal_scale = np.float32(
-            cfg.body_signal_e_s * body.reflectance_factor * _phase_factor(cfg, float(sun_c @ e3))
-        )
-        self.wls = np.float32(cfg.lommel_seeliger_weight)
-
-    def cast(
-        self, rows: np.ndarray, cols: np.ndarray, depth_guess: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Rays through pixel centres (1-D arrays): indices of those hitting the body, their depth (m), signal (e-/s).
-
-        ``depth_guess`` (m, NaN for none) starts the intersection of those rays a quarter pixel width in front of it.
-        """
-        distf = np.float32(self.dist)
-        dx = (cols.astype(np.float32) - np.float32(self.cx)) * np.float32(1.0 / self.f)
-        dy = (rows.astype(np.float32) - np.float32(self.cy)) * np.float32(1.0 / self.f)
-        inv = np.float32(1.0) / np.sqrt(dx * dx + dy * dy + np.float32(1.0))
-        (a, b, c), (d, e, g) = self.basis[0], self.basis[1]
-        de1 = (a * dx + b * dy + c) * inv
-        de2 = (d * dx + e * dy + g) * inv
-        sin2 = de1 * de1 + de2 * de2
-        cand = np.flatnonzero(sin2 < (self.r_max / distf) ** 2)
-        if cand.size == 0:
-            return cand, np.empty(0, np.float32), np.empty(0, np.float32)
-        de1, de2, sin2 = de1[cand], de2[cand], sin2[cand]
-        de3 = -np.sqrt(np.float32(1.0) - sin2)
-        # silhouette: inside the body's projected limb radius at the ray's polar angle in the view plane
-        limb = self.limb
-        bins = len(limb) - 1
-        rho = distf * np.sqrt(sin2) / -de3  # where the ray crosses the plane through the centre normal to e3
-        pos = pseudo_angle(de1, de2) * np.float32(bins / 4.0)
-        j = np.minimum(pos.astype(np.int32), bins - 1)
-        rho_limb = limb[j] + (limb[j + 1] - limb[j]) * (pos - j.astype(np.float32))
-        sel = np.flatnonzero(rho <= rho_limb)
-        de1, de2, de3, sin2, rho_limb = de1[sel], de2[sel], de3[sel], sin2[sel], rho_limb[sel]
-        b2 = distf * distf * sin2
-        rays = (-distf * de3 * de1, -distf * de3 * de2, distf * sin2, de1, de2, de3, b2)
-        warm = None
-        if depth_guess is not None:
-            warm = -distf * de3 - depth_guess[cand[sel]].astype(np.float32) + np.float32(0.25 * self.dist / self.f)
-        # first guess: a sphere as wide as the limb in this direction (or a quarter pixel in front of the neighbours)
-        h, normal = self._intersect(rays, np.sqrt(np.maximum(rho_limb * rho_limb - b2, np.float32(0.0))), warm)
-        n1, n2, n3 = normal
-        depth = -distf * de3 - h
-        sv = self.sun_v
-        mu0 = np.maximum(n1 * sv[0] + n2 * sv[1] + n3 * sv[2], np.float32(0.0))
-        mu = np.maximum(-(n1 * de1 + n2 * de2 + n3 * de3), np.float32(0.0))
-        w = self.wls
-        law = w * 2 * mu0 / np.maximum(mu0 + mu, np.float32(1e-12)) + (1 - w) * mu0
-        return cand[sel], depth, self.signal_scale * law
-
-    def _intersect(
-        self, rays: tuple[np.ndarray, ...], h0: np.ndarray, warm: np.ndarray | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Front intersection h (m before the closest point) and the unit normal (3, n) there, by safeguarded Newton.
-
-        ``h0`` is the first guess inside the smallest radius (``warm``, where not NaN, for any ray); the bracket
-        starts as [h(r_min), h(r_max)] inside the smallest radius and as the whole chord [-h(r_max), h(r_max)]
-        elsewhere, and shrinks from the side of each Newton iterate's sign.
-        """
-        table = self.table
-        n_side = table.shape[0]
-        scale = np.float32((n_side - 1) / (2.0 * _TABLE_S))
-        off = np.float32(_TABLE_S * (n_side - 1) / (2.0 * _TABLE_S))
-        tiny = np.float32(1e-9 * self.dist)
-        floor = np.float32(1e-3)
-
-        def surface(ray: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, ...]:
-            """g = |x| - r(u), dg/dh and the (interpolated, not renormalised) normal at the points h before the rays'
-            closest points; ``ray`` rows: q1, q2, q3, a1, a2, a3, b^2."""
-            q1, q2, q3, a1, a2, a3, bb = ray
-            x1, x2, x3 = q1 - h * a1, q2 - h * a2, q3 - h * a3
-            qn = np.sqrt(bb + h * h) + tiny
-            inv_den = scale / np.maximum(qn + x3, floor * qn)
-            look = _remap_points(table, x1 * inv_den + off, x2 * inv_den + off)
-            r, m1, m2, m3 = look[:, 0], look[:, 1], look[:, 2], look[:, 3]
-            inv_q = np.float32(1.0) / qn
-            # r(u) along the ray: its tangential gradient is r (u - n / (n.u)), and du/dh = -(d - (u.d) u) / |x|;
-            # with q . d = 0, x . d = -h, and the normal's length cancels in (n.d) / (n.u) (|n| ~ 1 bounds the floor)
-            mx = np.maximum(m1 * x1 + m2 * x2 + m3 * x3, floor * qn)
-            slope = h * inv_q * (np.float32(1.0) - r * inv_q) - r * (m1 * a1 + m2 * a2 + m3 * a3) / mx
-            return qn - r, slope, m1, m2, m3
-
-        b2 = rays[6]
-        r_min, r_max, radius = self.r_min, self.r_max, self.radius
-        hi = np.sqrt(np.maximum(r_max * r_max - b2, np.float32(0.0)))
-        inner = (b2 < r_min * r_min).astype(np.float32)
-        lo = -hi + (np.sqrt(np.maximum(r_min * r_min - b2, np.float32(0.0))) + hi) * inner
-        # off the inner sphere the front root is reached monotonically from the camera side: start there
-        h = hi + (np.clip(h0, lo, hi) - hi) * inner
-        if warm is not None:
-            # a start from the neighbours' depth: inside the bracket, the safeguard still holds
-            h = np.where(np.isnan(warm), h, np.clip(warm, lo, hi))
-        normal = np.zeros((3, b2.size), dtype=np.float32)
-        active = np.arange(b2.size)
-        act = np.stack(rays)
-        h_a, lo_a, hi_a = h, lo, hi
-        tol = np.float32(1e-4) * radius
-        for it in range(_RAY_ITERATIONS):
-            g, slope, n1, n2, n3 = surface(act, h_a)
-            outside = g > 0
-            hi_a = np.where(outside, h_a, hi_a)
-            lo_a = np.where(outside, lo_a, h_a)
-            step = h_a - g / np.maximum(slope, np.float32(1e-6))
-            h_a = np.where((step > lo_a) & (step < hi_a), step, np.float32(0.5) * (lo_a + hi_a))
-            # rays on the surface (|g| below 0.1 mm per metre of radius) are done; the rest go on while they are
-            # many (dropping a few costs more than stepping them once more)
-            done = np.abs(g) <= tol if it + 1 < _RAY_ITERATIONS else np.ones(g.shape, dtype=bool)
-            n_done = int(np.count_nonzero(done))
-            if n_done == g.size:
-                normal[:, active] = (n1, n2, n3)
-                h[active] = h_a
-                break
-            if n_done > g.size // 8:
-                fin = np.flatnonzero(done)
-                at = active[fin]
-                normal[:, at] = (n1[fin], n2[fin], n3[fin])
-                h[at] = h_a[fin]
-                keep = np.flatnonzero(~done)
-                active = active[keep]
-                act = act[:, keep]
-                h_a, lo_a, hi_a = h_a[keep], lo_a[keep], hi_a[keep]
-        normal *= np.float32(1.0) / np.sqrt(np.sum(normal * normal, axis=0))
-        return h, normal
+        self.sun_v = view_to_cam.T @ sun_c
+        signal_scale = cfg.body_signal_e_s * body.reflectance_factor * _phase_factor(cfg, float(sun_c @ e3))
+        self.geometry = np.array([
+            dist, 1.0 / f, cx, cy, body.radius_m * body.shape.min_radius(), view.r_max_m, body.radius_m, signal_scale,
+            cfg.lommel_seeliger_weight, 0.25 * dist / f,  # warm starts a quarter pixel in front of the guess
+        ])
 
 
 _SUBSAMPLE_MIN_PX = 48.0  # bodies at least this wide are cast on a 2 px grid inside, per pixel along edges
@@ -636,73 +492,6 @@ def grid_step_px(diameter_px: float) -> int:
     if diameter_px < _SUBSAMPLE_MIN_PX:
         return 1
     return 2 if diameter_px < _COARSE_MIN_PX else 4
-
-
-def upsampled_nodes(nodes: np.ndarray, step: int, h: int, w: int, r0: int = 0, c0: int = 0) -> np.ndarray:
-    """Bilinear interpolation of node values (n, m) float32 at pixels [r0, r0 + h) x [c0, c0 + w) of a grid with a
-    node every ``step`` px: node (i, j) sits on pixel (step i, step j); pixels beyond the last node take its value.
-
-    ``cv2.remap`` with maps at exact multiples of 1/step (a power of two up to 32, so its 1/32 px fixed-point
-    weights are exact) does the interpolation.
-    """
-    if step not in (1, 2, 4, 8, 16, 32):
-        raise RenderError(f"upsampled_nodes: step must be a power of two up to 32, got {step}")
-    map_x = np.empty((h, w), dtype=np.float32)
-    map_y = np.empty((h, w), dtype=np.float32)
-    map_x[:] = (np.arange(c0, c0 + w) / step).astype(np.float32)
-    map_y[:] = (np.arange(r0, r0 + h) / step).astype(np.float32)[:, None]
-    return cv2.remap(nodes, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-
-
-def _bilinear_at(
-    hit: np.ndarray, nodes: np.ndarray, step: int, py: np.ndarray, px: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Bilinear interpolation of node values (n, m) at box pixels (py, px) of a grid with a node every ``step`` px,
-    and whether all four corners of the enclosing cell hit the body."""
-    hn, wn = hit.shape
-    # the last node row/column belongs to the cell before it
-    i, j = np.minimum(py // step, hn - 2), np.minimum(px // step, wn - 2)
-    fy = (py - i * step).astype(np.float32) * np.float32(1.0 / step)
-    fx = (px - j * step).astype(np.float32) * np.float32(1.0 / step)
-    k00 = i * wn + j
-    v = nodes.reshape(-1)
-    hf = hit.reshape(-1)
-    v00, v10, v01, v11 = v[k00], v[k00 + wn], v[k00 + 1], v[k00 + wn + 1]
-    est = v00 + (v10 - v00) * fy + (v01 - v00) * fx + (v00 - v10 - v01 + v11) * (fx * fy)
-    return est, hf[k00] & hf[k00 + wn] & hf[k00 + 1] & hf[k00 + wn + 1]
-
-
-def _cast_nodes(
-    caster: _BodyCaster,
-    r0: int,
-    c0: int,
-    step: int,
-    hit: np.ndarray,
-    depth: np.ndarray,
-    sig: np.ndarray,
-    sel: np.ndarray,
-    depth_guess: np.ndarray | None = None,
-) -> None:
-    """Cast the nodes ``sel`` (flat indices) of a grid with a node every ``step`` px from pixel (r0, c0); write their
-    hit flags, depth (m) and signal (e-/s) into ``hit``, ``depth`` and ``sig`` (n, m)."""
-    wn = hit.shape[1]
-    idx, dep, val = caster.cast(r0 + step * (sel // wn), c0 + step * (sel % wn), depth_guess)
-    at = sel[idx]
-    hit.reshape(-1)[at] = True
-    depth.reshape(-1)[at] = dep
-    sig.reshape(-1)[at] = val
-
-
-def _cell_counts(flags: np.ndarray) -> np.ndarray:
-    """Number of the four corner nodes of each cell that are set: (n - 1, m - 1) int8."""
-    return flags[:-1, :-1].astype(np.int8) + flags[1:, :-1] + flags[:-1, 1:] + flags[1:, 1:]
-
-
-def _cells_to_pixels(cells: np.ndarray, step: int, h: int, w: int) -> np.ndarray:
-    """Pixel mask (h, w) uint8 of the cells (n, m) of a grid with a node every ``step`` px (cell (i, j) spans pixels
-    [step i, step (i + 1)) x [step j, step (j + 1)))."""
-    n, m = cells.shape
-    return cv2.resize(cells.astype(np.uint8), (m * step, n * step), interpolation=cv2.INTER_NEAREST)[:h, :w]
 
 
 def _cast_body(
@@ -726,93 +515,16 @@ def _cast_body(
     may be in front or behind) and 0 elsewhere (only whether they hit is kept); cast pixels always get theirs.
     """
     r0, r1, c0, c1 = view.box
-    h, w = r1 - r0, c1 - c0
     caster = _BodyCaster(view, c2i, sun_c, cfg, f, cx, cy)
-    k = grid_step_px(caster.diameter_px)
-    if k == 1:
-        depth = np.full(h * w, np.inf, dtype=np.float32)
-        sig = np.zeros(h * w, dtype=np.float32)
-        hit, dep, val = caster.cast(np.repeat(np.arange(r0, r1), w), np.tile(np.arange(c0, c1), h))
-        depth[hit] = dep
-        sig[hit] = val
-        return depth.reshape(h, w), sig.reshape(h, w)
-    depth = np.full((h, w), np.inf, dtype=np.float32)
-    sig = np.zeros((h, w), dtype=np.float32)
-    hn, wn = h // k + 2, w // k + 2
-    hit = np.zeros((hn, wn), dtype=bool)
-    n_depth = np.zeros((hn, wn), dtype=np.float32)
-    n_sig = np.zeros((hn, wn), dtype=np.float32)
-    _cast_nodes(caster, r0, c0, k, hit, n_depth, n_sig, np.arange(hn * wn))
-    region: np.ndarray | None = None  # cells of this grid still to classify (None: all)
-    while True:
-        d = n_depth
-        spread = np.maximum(np.maximum(d[:-1, :-1], d[1:, :-1]), np.maximum(d[:-1, 1:], d[1:, 1:])) - np.minimum(
-            np.minimum(d[:-1, :-1], d[1:, :-1]), np.minimum(d[:-1, 1:], d[1:, 1:])
-        )
-        counts = _cell_counts(hit)
-        smooth = (counts == 4) & (spread < np.float32(_SMOOTH_SPREAD_CELLS[k] * k * caster.dist / f))
-        if k > 2:
-            lit = _cell_counts(n_sig > 0)
-            smooth &= (lit == 0) | (lit == 4)  # the shading has a kink at the terminator: refine across it
-        refine = counts > 0
-        if region is not None:
-            smooth &= region
-            refine &= region
-        refine &= ~smooth
-        if smooth.any():
-            px = _cells_to_pixels(smooth, k, h, w)
-            if region is None:  # the first grid: most of the box, interpolated in one pass
-                cv2.copyTo(upsampled_nodes(n_sig, k, h, w), px, sig)
-                cv2.copyTo(np.zeros_like(sig), px, depth)
-                if depth_window is not None:
-                    wr0, wr1, wc0, wc1 = depth_window
-                    win = (slice(wr0, wr1), slice(wc0, wc1))
-                    cv2.copyTo(upsampled_nodes(n_depth, k, wr1 - wr0, wc1 - wc0, wr0, wc0), px[win], depth[win])
-            else:  # a finer grid: a band of cells, interpolated where they are
-                at = np.flatnonzero(px)
-                py, pxx = at // w, at % w
-                sig.reshape(-1)[at] = _bilinear_at(hit, n_sig, k, py, pxx)[0]
-                depth.reshape(-1)[at] = 0.0
-                if depth_window is not None:
-                    wr0, wr1, wc0, wc1 = depth_window
-                    inw = np.flatnonzero((py >= wr0) & (py < wr1) & (pxx >= wc0) & (pxx < wc1))
-                    depth.reshape(-1)[at[inw]] = _bilinear_at(hit, n_depth, k, py[inw], pxx[inw])[0]
-        if k == 2 or not refine.any():
-            break
-        # the grid twice as fine: its even nodes are this grid's, the others are cast around the refined cells
-        fine_hn, fine_wn = 2 * hn - 1, 2 * wn - 1
-        fine_hit = np.zeros((fine_hn, fine_wn), dtype=bool)
-        fine_depth = np.zeros((fine_hn, fine_wn), dtype=np.float32)
-        fine_sig = np.zeros((fine_hn, fine_wn), dtype=np.float32)
-        fine_hit[::2, ::2] = hit
-        fine_depth[::2, ::2] = n_depth
-        fine_sig[::2, ::2] = n_sig
-        region = np.repeat(np.repeat(refine, 2, axis=0), 2, axis=1)
-        need = np.zeros((fine_hn, fine_wn), dtype=bool)
-        need[:-1, :-1] |= region
-        need[1:, :-1] |= region
-        need[:-1, 1:] |= region
-        need[1:, 1:] |= region
-        need[::2, ::2] = False
-        sel = np.flatnonzero(need)
-        guess, ok = _bilinear_at(hit, n_depth, k, (k // 2) * (sel // fine_wn), (k // 2) * (sel % fine_wn))
-        _cast_nodes(caster, r0, c0, k // 2, fine_hit, fine_depth, fine_sig, sel, np.where(ok, guess, np.nan))
-        hn, wn, k = fine_hn, fine_wn, k // 2
-        hit, n_depth, n_sig = fine_hit, fine_depth, fine_sig
-    rough = _cells_to_pixels(refine, k, h, w).view(bool)
-    # pixels on a node of this grid were cast already
-    node_px = rough[::k, ::k].copy()
-    rough[::k, ::k] = False
-    on = np.flatnonzero(node_px.reshape(-1) & hit[: node_px.shape[0], : node_px.shape[1]].reshape(-1))
-    ni, nj = on // node_px.shape[1], on % node_px.shape[1]
-    depth[k * ni, k * nj] = n_depth[ni, nj]
-    sig[k * ni, k * nj] = n_sig[ni, nj]
-    rough_px = np.flatnonzero(rough)
-    rows, cols = rough_px // w, rough_px % w
-    guess, ok = _bilinear_at(hit, n_depth, k, rows, cols)
-    hit_r, depth_r, sig_r = caster.cast(r0 + rows, c0 + cols, np.where(ok, guess, np.nan))
-    depth.reshape(-1)[rough_px[hit_r]] = depth_r
-    sig.reshape(-1)[rough_px[hit_r]] = sig_r
+    depth = np.full((r1 - r0, c1 - c0), np.inf, dtype=np.float32)
+    sig = np.zeros((r1 - r0, c1 - c0), dtype=np.float32)
+    window = np.array(depth_window if depth_window is not None else (0, 0, 0, 0), dtype=np.int64)
+    cell_m = caster.dist / f  # one pixel's width at the body's distance
+    cast_body(
+        r0, c0, grid_step_px(caster.diameter_px), _SMOOTH_SPREAD_CELLS[4] * 4 * cell_m,
+        _SMOOTH_SPREAD_CELLS[2] * 2 * cell_m, window, caster.table, caster.limb, caster.basis, caster.sun_v,
+        caster.geometry, depth, sig,
+    )
     return depth, sig
 
 
@@ -1108,7 +820,6 @@ def _scratch(name: str, shape: tuple[int, ...]) -> np.ndarray:
     return buf[:n].reshape(shape)
 
 
-_BAND_ROWS = 128  # rows digitised at a time: the work buffers of a band stay in the core's cache
 
 
 def _digitise(
@@ -1117,31 +828,15 @@ def _digitise(
     """DN (uint16, same shape) of pixels holding ``signal_e`` scene electrons (float32), with their own normal codes.
 
     ``offset + dark/g + (s + sqrt(s + dark + read^2) z) / g`` with s clamped at 0, rounded to nearest (ties to even)
-    and clipped to [0, max_dn]; OpenCV element-wise kernels on one thread, a band of rows at a time (1-D inputs are
-    handled as one row). ``signal_e`` is clamped at 0 in place.
+    and clipped to [0, max_dn] (``universe.readout.digitise``; 1-D inputs are handled as one row).
     """
     shape = signal_e.shape
     s = signal_e.reshape(1, -1) if signal_e.ndim == 1 else signal_e
     c = codes.reshape(1, -1) if codes.ndim == 1 else codes
-    rows, cols = s.shape
-    out = np.empty((rows, cols), dtype=np.uint16)
-    band = min(rows, _BAND_ROWS)
-    noise = _scratch("noise", (band, cols))
-    sd = _scratch("sd", (band, cols))
-    var0 = float(dark_e + cfg.read_noise_e**2)
+    out = np.empty(s.shape, dtype=np.uint16)
     inv_g = 1.0 / cfg.gain_e_per_dn
-    bias = cfg.dark_offset_dn + dark_e * inv_g
-    for r in range(0, rows, band):
-        n = min(band, rows - r)
-        sb, nb, db = s[r : r + n], noise[:n], sd[:n]
-        cv2.max(sb, 0.0, dst=sb)
-        np.take(NORMAL_QUANTILES, c[r : r + n], out=nb, mode="wrap")  # 16-bit codes never wrap; 'raise' buffers
-        cv2.add(sb, var0, dst=db)
-        cv2.sqrt(db, dst=db)
-        cv2.multiply(db, nb, dst=nb)
-        ob = out[r : r + n]
-        cv2.addWeighted(sb, inv_g, nb, inv_g, bias, dst=ob, dtype=cv2.CV_16U)
-        cv2.min(ob, float(max_dn), dst=ob)
+    readout.digitise(s, c, NORMAL_QUANTILES, float(dark_e + cfg.read_noise_e**2), inv_g,
+                     cfg.dark_offset_dn + dark_e * inv_g, max_dn, out)
     return out.reshape(shape)
 
 
@@ -1165,6 +860,13 @@ def _merged_boxes(boxes: list[tuple[int, int, int, int]]) -> list[tuple[int, int
 
 # ----------------------------------------------------------------------------------------------------------------
 # The frame
+
+
+def warm_up() -> None:
+    """Compile the camera's kernels (``universe.raycast``, ``universe.readout``) now, or load them from their cache:
+    seconds the first time after an install, which a node pays before its first frame is due."""
+    raycast.warm_up()
+    readout.warm_up()
 
 
 def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.random.Generator) -> np.ndarray:

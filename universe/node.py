@@ -18,7 +18,7 @@ from flyby.clock import Clock, WallClock
 from flyby.messages import GroundReply, StepReply
 from flyby.runtime import Attachment
 from flyby.scenario import Scenario
-from universe.camera import frame_to_png8
+from universe.camera import frame_to_png8, warm_up
 from universe.simulator import Universe
 
 log = logging.getLogger("universe")
@@ -97,6 +97,10 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, realtim
 
         def body() -> None:  # building the simulator is inside: a bad geometry is reported like any error
             made.append(Universe(scenario))
+            wall = WallClock()
+            t0 = wall.now()
+            warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
+            log.info("camera kernels ready in %.1f s", wall.now() - t0)
             frames = FrameWriter(out / "frames", scenario.universe.save_frames_every,
                                  scenario.universe.camera.bit_depth)
             run(bus, made[0], scenario, realtime, WallClock(), frames)

@@ -39,6 +39,10 @@ def pointing_attitude(los_inertial: np.ndarray, roll_ref_inertial: np.ndarray) -
     if np.linalg.norm(x) < 1e-9:  # reference along the boresight: any perpendicular will do
         x = np.cross(z, [0.0, 0.0, 1.0] if abs(z[2]) < 0.9 else [1.0, 0.0, 0.0])
     x /= np.linalg.norm(x)
+    # a reference nearly along the boresight leaves x with a relative error of 1e-16 / |x|: projecting once more
+    # makes it perpendicular to working precision (Gram-Schmidt twice)
+    x -= (x @ z) * z
+    x /= np.linalg.norm(x)
     return Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z]))
 
 

@@ -30,7 +30,6 @@ from universe.camera import (
     render_frame,
     scene_electrons,
     sky_stars,
-    upsampled_nodes,
 )
 from universe.config import CameraConfig, PlumeConfig
 from universe.shapes import ShapeModel, fibonacci_sphere
@@ -493,18 +492,6 @@ def test_camera_motion_smears_a_body_by_v_t_over_range() -> None:
 
 
 # ------------------------------------------------------------------------------------------------ fast paths
-
-
-@pytest.mark.parametrize("step", [2, 4])
-def test_upsampled_nodes_is_bilinear_interpolation_between_nodes(step: int) -> None:
-    """Node (i, j) on pixel (step i, step j): every pixel matches scipy's order-1 map_coordinates at (y, x) / step."""
-    nodes = np.random.default_rng(step).normal(size=(23, 31)).astype(np.float32)
-    h, w = 22 * step, 30 * step
-    out = upsampled_nodes(nodes, step, h, w)
-    yy, xx = np.mgrid[0:h, 0:w] / step
-    expected = ndimage.map_coordinates(nodes.astype(float), [yy, xx], order=1)
-    assert out.shape == (h, w)
-    assert np.max(np.abs(out - expected)) < 1e-5
 
 
 @settings(max_examples=60, deadline=None)

@@ -1,0 +1,43 @@
+"""Compiled detector readout: scene electrons and per-pixel normal codes to digital numbers, in one pass (Numba).
+
+The camera's noise model (``universe.camera``): a pixel holding ``s`` scene electrons (clamped at 0) reads
+``offset + dark/g + (s + sqrt(s + dark + read^2) z) / g`` DN, rounded to nearest (ties to even) and clipped to
+[0, max_dn], where ``z`` is the standard normal deviate of the pixel's 16-bit code. One fused loop reads each input
+once and writes the frame once; the OpenCV element-wise passes it replaces made six passes over the frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def digitise(
+    signal_e: np.ndarray, codes: np.ndarray, quantiles: np.ndarray, var0: float, inv_g: float, bias: float,
+    max_dn: int, out: np.ndarray,
+) -> None:
+    """Fill ``out`` (rows, cols) uint16 with the DN of pixels holding ``signal_e`` (rows, cols) float32 electrons
+    whose normal deviates are ``quantiles[codes]`` (codes uint16); ``var0`` is dark + read noise variance (e-^2),
+    ``inv_g`` the inverse gain (DN/e-), ``bias`` offset plus dark (DN)."""
+    rows, cols = signal_e.shape
+    # single precision throughout, as the frame is stored: half the cost of double-precision square roots
+    zero = np.float32(0.0)
+    top = np.float32(max_dn)
+    v0, g, b = np.float32(var0), np.float32(inv_g), np.float32(bias)
+    for i in range(rows):
+        for j in range(cols):
+            s = max(signal_e[i, j], zero)
+            v = (s + math.sqrt(s + v0) * quantiles[codes[i, j]]) * g + b
+            out[i, j] = np.uint16(np.rint(min(max(v, zero), top)))
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the kernel now, for whole frames and for windows into them."""
+    frame = np.zeros((4, 4), np.float32)
+    codes = np.zeros((4, 4), np.uint16)
+    quantiles = np.zeros(65536, np.float32)
+    digitise(frame, codes, quantiles, 1.0, 1.0, 0.0, 4095, np.empty((4, 4), np.uint16))
+    digitise(frame[1:3, 1:3], codes[1:3, 1:3], quantiles, 1.0, 1.0, 0.0, 4095, np.empty((2, 2), np.uint16))
