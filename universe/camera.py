@@ -330,9 +330,9 @@ def _limb_radius(table: np.ndarray, dist: float, perimeter_px: float) -> np.ndar
     Points seen at image polar angle psi lie in the half-plane through the camera-centre line at psi, so the limb
     there is the largest perspective-projected radius over that half-plane's slice of the surface: a sampled
     maximum over the angle from the camera direction, refined by a parabola through the best three samples.
-    Bin j is at ``pseudo_angle = 4 j / M``; M gives about one bin per pixel of perimeter.
+    Bin j is at ``pseudo_angle = 4 j / M``; M (a power of two) gives 0.7 to 1.4 bins per pixel of perimeter.
     """
-    m = int(min(4096, max(64, 2 ** math.ceil(math.log2(max(perimeter_px, 1.0))))))
+    m = int(min(4096, max(64, 2 ** round(math.log2(max(perimeter_px, 1.0))))))
     mx, my, st, ct = _limb_maps(m, table.shape[0])
     r = cv2.remap(np.ascontiguousarray(table[..., 0]), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     distf = np.float32(dist)
