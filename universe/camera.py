@@ -206,7 +206,7 @@ def _camera_to_body(boresight: tuple[float, float, float]) -> np.ndarray:
 
 def camera_to_inertial_matrix(scene: Scene, cfg: CameraConfig) -> np.ndarray:
     """3x3 matrix taking camera-frame vectors to the inertial frame."""
-    return Rotation.from_quat(scene.q_body_to_inertial).as_matrix() @ _camera_to_body(tuple(cfg.boresight_body))
+    return quat_matrix(scene.q_body_to_inertial) @ _camera_to_body(tuple(cfg.boresight_body))
 
 
 def project_inertial(scene: Scene, cfg: CameraConfig, point_inertial: np.ndarray) -> tuple:
@@ -289,6 +289,16 @@ def psf_kernel(sigma_px: float, smear_px: tuple[float, float]) -> np.ndarray:
 _TABLE_MAX = 96  # radius/normal table side at most: 1.9 deg per cell at the limb, finer than any bump
 _TABLE_MIN = 24  # ... and at least (bodies a few pixels across)
 _LIMB_ANGLES = np.deg2rad(np.linspace(50.0, 130.0, 25))  # polar angles from the camera direction searched for the limb
+
+
+def quat_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a unit quaternion [x, y, z, w] (scipy's order), without Rotation's ~50 us of overhead."""
+    x, y, z, w = float(q[0]), float(q[1]), float(q[2]), float(q[3])
+    return np.array([
+        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - z * w), 2.0 * (x * z + y * w)],
+        [2.0 * (x * y + z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - x * w)],
+        [2.0 * (x * z - y * w), 2.0 * (y * z + x * w), 1.0 - 2.0 * (x * x + y * y)],
+    ])
 
 
 def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -376,13 +386,11 @@ def _shape_table(body: Body, view_to_ast: np.ndarray, n: int) -> np.ndarray:
         m[1, 0] * v1 + m[1, 1] * v2 + m[1, 2] * v3,
         m[2, 0] * v1 + m[2, 1] * v2 + m[2, 2] * v3,
     )
-    a2v = view_to_ast.T  # body frame -> view frame
-    table = np.empty((n, n, 4), dtype=np.float32)
-    table[..., 0] = ast[..., 0] * np.float32(body.radius_m)
-    n1, n2, n3 = ast[..., 1], ast[..., 2], ast[..., 3]
-    for k in range(3):
-        table[..., 1 + k] = a2v[k, 0] * n1 + a2v[k, 1] * n2 + a2v[k, 2] * n3
-    return table
+    # one small matrix product: the radius scaled to metres, the body-frame normal turned into the view frame
+    to_view = np.zeros((4, 4), dtype=np.float32)
+    to_view[0, 0] = body.radius_m
+    to_view[1:, 1:] = view_to_ast  # (n_ast row) @ view_to_ast = (view_to_ast^T n_ast)^T
+    return ast @ to_view
 
 
 def _phase_factor(cfg: CameraConfig, cos_alpha: float) -> float:
@@ -468,7 +476,7 @@ class _BodyCaster:
         self.diameter_px = 2.0 * f * view.r_max_m / dist
         n_side = _table_side(self.diameter_px)
         view_to_cam = np.stack([e1, e2, e3], axis=1)
-        view_to_ast = Rotation.from_quat(body.q_body_to_inertial).as_matrix().T @ c2i @ view_to_cam
+        view_to_ast = quat_matrix(body.q_body_to_inertial).T @ c2i @ view_to_cam
         self.table = _shape_table(body, view_to_ast, n_side)
         self.limb = _limb_radius(self.table, dist, math.pi * self.diameter_px)
         self.sun_v = view_to_cam.T @ sun_c
@@ -916,7 +924,7 @@ def _scene_electrons(
     cx, cy = principal_point_px(cfg)
     c2i = camera_to_inertial_matrix(scene, cfg)
     texp = scene.exposure_s
-    omega_c = c2i.T @ (Rotation.from_quat(scene.q_body_to_inertial).apply(scene.body_rate_rad_s))
+    omega_c = c2i.T @ (quat_matrix(scene.q_body_to_inertial) @ scene.body_rate_rad_s)
     occluders: list[tuple[tuple[int, int, int, int], np.ndarray]] = []
     sun_c = c2i.T @ scene.sun_direction
     vel_c = c2i.T @ (-scene.camera_velocity_m_s)
@@ -1012,7 +1020,10 @@ def _add_stars(
     v, mag = v[front], mag[front]
     col = cx + f * v[:, 0] / v[:, 2]
     row = cy + f * v[:, 1] / v[:, 2]
-    smear = _image_velocity_px_s(v, -np.cross(omega_c, v), f) * scene.exposure_s
+    w0, w1, w2 = float(omega_c[0]), float(omega_c[1]), float(omega_c[2])
+    # -omega x v per star, by components (np.cross costs more in argument handling than in arithmetic)
+    dv = np.stack([w2 * v[:, 1] - w1 * v[:, 2], w0 * v[:, 2] - w2 * v[:, 0], w1 * v[:, 0] - w0 * v[:, 1]], axis=1)
+    smear = _image_velocity_px_s(v, dv, f) * scene.exposure_s
     # stamps cut at 3.5 sigma beyond half the smear along each image axis (a rectangle along a streak)
     hx = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.abs(smear[:, 0]), initial=0.0)))
     hy = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.abs(smear[:, 1]), initial=0.0)))

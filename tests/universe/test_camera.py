@@ -27,6 +27,7 @@ from universe.camera import (
     plume_cross_section_m2,
     project_inertial,
     psf_kernel,
+    quat_matrix,
     render_frame,
     scene_electrons,
     sky_stars,
@@ -586,3 +587,13 @@ def test_tan_multiples_match_tan() -> None:
     angle = np.linspace(0.0, math.radians(89.9), 500)
     frac = (np.arange(8) + 0.5) / 8
     assert np.allclose(_tan_multiples(angle, frac), np.tan(frac[:, None] * angle[None]), rtol=1e-9, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4))
+def test_quat_matrix_matches_scipy(q: list[float]) -> None:
+    """quat_matrix of a unit quaternion is scipy's Rotation.as_matrix for it."""
+    v = np.array(q)
+    assume(np.linalg.norm(v) > 0.1)
+    v /= np.linalg.norm(v)
+    assert np.allclose(quat_matrix(v), Rotation.from_quat(v).as_matrix(), atol=1e-12)
