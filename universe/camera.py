@@ -686,10 +686,14 @@ def plume_cross_section_m2(plume: PlumeConfig, t_s: float) -> float:
 
 
 def _plume_signal(
-    scene: Scene, cfg: CameraConfig, plume: PlumeConfig, c2i: np.ndarray, f: float, cx: float, cy: float
-) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+    scene: Scene, cfg: CameraConfig, plume: PlumeConfig, c2i: np.ndarray, f: float, cx: float, cy: float,
+    frame: np.ndarray | None = None,
+) -> tuple[tuple[int, int, int, int], np.ndarray | None] | None:
     """Plume electrons per pixel in the exposure over its clipped pixel box (a view of a work buffer, valid until the
-    next call), or None if there is none in view."""
+    next call), or None if there is none in view.
+
+    When the plume's box is the whole frame and ``frame`` (H, W) is given, the plume is resampled straight into it
+    (overwriting it: no zeroing and adding of a frame-sized buffer) and None is returned in place of the pixels."""
     t = scene.time_since_impact_s
     if not plume.enabled or t is None or t <= 0 or scene.plume_body_index is None:
         return None
@@ -758,9 +762,10 @@ def _plume_signal(
     rb = int(min(h, math.ceil((rows_on[-1] + 2.5) * h / gh)))
     ca = int(max(0, math.floor((cols_on[0] - 0.5) * w / gw)))
     cb = int(min(w, math.ceil((cols_on[-1] + 2.5) * w / gw)))
-    fine = cv2.resize((coarse * scene.exposure_s).astype(np.float32), (w, h), dst=_scratch("plume", (h, w)),
-                      interpolation=cv2.INTER_LINEAR)
-    return (r0 + ra, r0 + rb, c0 + ca, c0 + cb), fine[ra:rb, ca:cb]
+    whole = frame is not None and (h, w) == frame.shape
+    fine = cv2.resize((coarse * scene.exposure_s).astype(np.float32), (w, h),
+                      dst=frame if whole else _scratch("plume", (h, w)), interpolation=cv2.INTER_LINEAR)
+    return (r0 + ra, r0 + rb, c0 + ca, c0 + cb), None if whole else fine[ra:rb, ca:cb]
 
 
 def _tan_multiples(angle: np.ndarray, frac: np.ndarray) -> np.ndarray:
@@ -916,13 +921,23 @@ def _scene_electrons(
     """Scene electrons (H, W) float32, the boxes (r0, r1, c0, c1) holding bodies and plume, the stars' flat pixels."""
     size = cfg.resolution_px
     signal = _scratch("signal", (size, size))
-    signal.fill(0.0)
     boxes: list[tuple[int, int, int, int]] = []
     if scene.blank:
+        signal.fill(0.0)
         return signal, boxes, np.empty(0, dtype=np.int64)
     f = focal_length_px(cfg)
     cx, cy = principal_point_px(cfg)
     c2i = camera_to_inertial_matrix(scene, cfg)
+    # the plume first: when it covers the frame it initialises the signal, else the signal starts at zero
+    pl = _plume_signal(scene, cfg, plume, c2i, f, cx, cy, frame=signal)
+    if pl is None or pl[1] is not None:
+        signal.fill(0.0)
+    if pl is not None:
+        (pr0, pr1, pc0, pc1), fine = pl
+        if fine is not None:
+            window = signal[pr0:pr1, pc0:pc1]
+            cv2.add(window, fine, dst=window)
+        boxes.append((pr0, pr1, pc0, pc1))
     texp = scene.exposure_s
     omega_c = c2i.T @ (quat_matrix(scene.q_body_to_inertial) @ scene.body_rate_rad_s)
     occluders: list[tuple[tuple[int, int, int, int], np.ndarray]] = []
@@ -965,13 +980,6 @@ def _scene_electrons(
         if fr0 < fr1 and fc0 < fc1:
             signal[fr0:fr1, fc0:fc1] += cut[fr0 - r0 + m : fr1 - r0 + m, fc0 - c0 + m : fc1 - c0 + m]
             boxes.append((fr0, fr1, fc0, fc1))
-
-    pl = _plume_signal(scene, cfg, plume, c2i, f, cx, cy)
-    if pl is not None:
-        (pr0, pr1, pc0, pc1), fine = pl
-        window = signal[pr0:pr1, pc0:pc1]
-        cv2.add(window, fine, dst=window)
-        boxes.append((pr0, pr1, pc0, pc1))
 
     star_flat = _add_stars(scene, cfg, c2i, omega_c, f, cx, cy, signal, occluders)
     return signal, boxes, star_flat
