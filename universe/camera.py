@@ -988,14 +988,15 @@ def _scene_electrons(
 def _blurred(image: np.ndarray, sigma_px: float, smear_px: tuple[float, float]) -> tuple[int, np.ndarray]:
     """``image`` convolved with the smeared PSF over itself grown by the kernel's half-size m: (m, result).
 
-    Without smear the kernel is a Gaussian, exactly separable: two 1-D passes instead of one 2-D pass.
+    Without smear, or with a smear along an image axis, the kernel is exactly separable (a Gaussian across the smear
+    times the smeared Gaussian along it): two 1-D passes instead of one 2-D pass.
     """
     kernel = psf_kernel(sigma_px, smear_px)
     m = kernel.shape[0] // 2
     padded = cv2.copyMakeBorder(image, m, m, m, m, cv2.BORDER_CONSTANT, value=0.0)
-    if math.hypot(*smear_px) <= _POINT_SMEAR_PX:
-        g = kernel.sum(axis=0)  # the 1-D Gaussian: the 2-D kernel is its outer product
-        return m, cv2.sepFilter2D(padded, -1, g, g, borderType=cv2.BORDER_CONSTANT)
+    if min(abs(smear_px[0]), abs(smear_px[1])) <= _POINT_SMEAR_PX:
+        # the kernel sums to 1, so it is the outer product of its row and column sums
+        return m, cv2.sepFilter2D(padded, -1, kernel.sum(axis=0), kernel.sum(axis=1), borderType=cv2.BORDER_CONSTANT)
     return m, cv2.filter2D(padded, -1, kernel, borderType=cv2.BORDER_CONSTANT)
 
 
