@@ -898,7 +898,8 @@ def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.ra
     regions = _merged_boxes(boxes)
     if sum((r1 - r0) * (c1 - c0) for r0, r1, c0, c1 in regions) > _FULL_FRAME_FRACTION * size * size:
         return _digitise(signal, codes, cfg, dark_e, max_dn)  # mostly lit: one pass over the whole frame
-    frame = np.take(_dark_dn_table(cfg, dark_e, max_dn), codes, mode="wrap")
+    frame = np.empty((size, size), dtype=np.uint16)
+    readout.dark_frame(codes, _dark_dn_table(cfg, dark_e, max_dn), frame)
     for r0, r1, c0, c1 in regions:
         frame[r0:r1, c0:c1] = _digitise(signal[r0:r1, c0:c1], codes[r0:r1, c0:c1], cfg, dark_e, max_dn)
     points = np.concatenate([star_flat, hot_idx])

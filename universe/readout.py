@@ -37,6 +37,16 @@ def digitise(
             o_row[j] = np.uint16(np.rint(min(max(v, zero), top)))
 
 
+@njit(cache=True, nogil=True)
+def dark_frame(codes: np.ndarray, dn_of_code: np.ndarray, out: np.ndarray) -> None:
+    """Fill ``out`` (rows, cols) uint16 with the DN of pixels without scene signal: ``dn_of_code`` (65536,) uint16
+    looked up at each pixel's code (C-contiguous arrays; twice as fast as ``np.take``)."""
+    flat_codes = codes.ravel()
+    flat_out = out.ravel()
+    for k in range(flat_codes.shape[0]):
+        flat_out[k] = dn_of_code[np.uint32(flat_codes[k])]
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) the kernel now, for whole frames and for windows into them."""
     frame = np.zeros((4, 4), np.float32)
@@ -44,3 +54,4 @@ def warm_up() -> None:
     quantiles = np.zeros(65536, np.float32)
     digitise(frame, codes, quantiles, 1.0, 1.0, 0.0, 4095, np.empty((4, 4), np.uint16))
     digitise(frame[1:3, 1:3], codes[1:3, 1:3], quantiles, 1.0, 1.0, 0.0, 4095, np.empty((2, 2), np.uint16))
+    dark_frame(codes, np.zeros(65536, np.uint16), np.empty((4, 4), np.uint16))

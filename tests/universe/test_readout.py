@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from universe.camera import NORMAL_QUANTILES, normal_codes
-from universe.readout import digitise
+from universe.readout import dark_frame, digitise
 
 
 def reference_dn(signal_e: np.ndarray, codes: np.ndarray, var0: float, inv_g: float, bias: float, max_dn: int):
@@ -39,3 +39,13 @@ def test_digitise_clips_at_zero_below_the_offset() -> None:
     out = np.empty((4, 4), dtype=np.uint16)
     digitise(np.zeros((4, 4), np.float32), codes, NORMAL_QUANTILES, 100.0, 1.0, 0.0, 4095, out)
     assert np.all(out == 0)
+
+
+def test_dark_frame_is_the_table_at_each_code() -> None:
+    """Pixels without signal read the per-code DN table, as numpy's take would give."""
+    rng = np.random.default_rng(3)
+    codes = normal_codes(rng, (64, 96))
+    table = rng.integers(0, 4096, 65536).astype(np.uint16)
+    out = np.empty(codes.shape, dtype=np.uint16)
+    dark_frame(codes, table, out)
+    assert np.array_equal(out, np.take(table, codes))
