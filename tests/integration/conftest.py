@@ -6,7 +6,18 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="session", autouse=True)
+def compiled_camera() -> None:
+    """Compile the camera's kernels once, before any node process needs them: the first run after an install pays
+    about 10 s for it (announced by ``flyby run``), which would otherwise eat into these tests' time windows."""
+    from universe.camera import warm_up
+
+    warm_up()
 
 
 def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
