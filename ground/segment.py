@@ -168,7 +168,18 @@ class GroundSegment:
         elif isinstance(report, pus.EventReport):
             log.append(f"event OBT {header.obt_s:.2f} s {type(report).__name__}: "
                        + ", ".join(f"{k}={v}" for k, v in report.model_dump().items() if k != "severity"))
+            if isinstance(report, pus.ClockJumpEvent):
+                self._clock_jumped(report.step_s, log)
         return ReceivedPacket(raw, utc_s, header, report, None)
+
+    def _clock_jumped(self, step_s: float, log: list[str]) -> None:
+        """On-board time stepped by ``step_s`` (commanded or not): the time reports received so far were all stamped
+        before it (the OBSW emits the event before its next report, and the link keeps order), so they are moved onto
+        the new time scale and the fit goes on across the step instead of bending through it."""
+        self.state.time_reports = [r.model_copy(update={"obt_s": r.obt_s + step_s}) for r in self.state.time_reports]
+        log.append(f"time correlation: {len(self.state.time_reports)} earlier report(s) moved by the on-board "
+                   f"time step of {step_s:+.6f} s")
+        self._refit(log)
 
     def _refit(self, log: list[str]) -> None:
         reports = self.state.time_reports
