@@ -108,17 +108,17 @@ def _cast_batch(
         # towards the camera
         q1, q2, q3 = -dist * d3 * d1, -dist * d3 * d2, dist * sin2
         hi = math.sqrt(r_max * r_max - bb)
-        if bb < r_min * r_min:
-            # inside the smallest radius the front root lies between that sphere and the bounding one; first guess:
-            # a sphere as wide as the limb in this direction
-            lo = math.sqrt(r_min * r_min - bb)
+        inner = bb < r_min * r_min
+        # inside the smallest radius the front root lies between that sphere and the bounding one
+        lo = math.sqrt(r_min * r_min - bb) if inner else -hi
+        if not math.isnan(guess):
+            h = min(max(-dist * d3 - guess + warm_shift, lo), hi)
+        elif inner:
+            # first guess: a sphere as wide as the limb in this direction
             h = min(max(math.sqrt(max(rho_limb * rho_limb - bb, 0.0)), lo), hi)
         else:
             # off the inner sphere the front root is reached monotonically from the camera side: start there
-            lo = -hi
             h = hi
-        if not math.isnan(guess):
-            h = min(max(-dist * d3 - guess + warm_shift, lo), hi)
         m1 = m2 = m3 = 0.0
         for _ in range(RAY_ITERATIONS):
             x1, x2, x3 = q1 - h * d1, q2 - h * d2, q3 - h * d3
