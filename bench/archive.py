@@ -18,9 +18,9 @@ from time import perf_counter
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from flyby.pus import Housekeeping, Mode, ModeChangedEvent, TimeReport, decode_tm, encode_tm  # noqa: E402
+from contracts.pus import Housekeeping, Mode, ModeChangedEvent, TimeReport, decode_tm, encode_tm  # noqa: E402
 from ground.archive import Archive  # noqa: E402
-from ground.config import LinkConfig  # noqa: E402
+from contracts.link import LinkConfig  # noqa: E402
 
 
 def traffic(n: int) -> list[bytes]:

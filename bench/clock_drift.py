@@ -30,8 +30,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # run as a script: import the project, not bench/'s own files
     sys.path.insert(0, str(ROOT))
 
-from flyby import pus  # noqa: E402
-from flyby.scenario import load_scenario  # noqa: E402
+from contracts import pus  # noqa: E402
+from scenario.model import load_scenario  # noqa: E402
 from universe.oscillator import Oscillator  # noqa: E402
 
 

@@ -35,9 +35,9 @@ sys.path[:] = [str(ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != 
 import numpy as np  # noqa: E402
 from scipy.optimize import minimize_scalar  # noqa: E402
 
-from flyby.scenario import Scenario, load_run_inputs  # noqa: E402
+from scenario.model import Scenario, load_run_inputs  # noqa: E402
 from ground.config import ReportConfig  # noqa: E402
-from ground.report import RunData, Telemetry, Truth, decoded_telemetry, load_run, report_figures  # noqa: E402
+from analysis.report import RunData, Telemetry, Truth, decoded_telemetry, load_run, report_figures  # noqa: E402
 from universe.geometry import FlybyGeometry  # noqa: E402
 
 SCENARIOS = tuple(ROOT / "configs" / "scenarios" / f"{n}.yaml"

@@ -22,10 +22,10 @@ import time
 
 import zenoh
 
-from flyby.bus import Keys, free_tcp_port, session_config
-from flyby.clock import WallClock
-from flyby.messages import SensorData, StepReply, StepRequest, decode, encode
-from flyby.runtime import Attachment
+from contracts.bus import Keys, free_tcp_port, session_config
+from contracts.clock import WallClock
+from contracts.messages import SensorData, StepReply, StepRequest, decode, encode
+from contracts.runtime import Attachment
 
 KEYS = Keys("bench")
 RAW_Q, RAW_PING, RAW_PONG = "bench/raw/q", "bench/raw/ping", "bench/raw/pong"

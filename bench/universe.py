@@ -40,12 +40,13 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from flyby.messages import FrameRequest, StepReply  # noqa: E402
-from flyby.scenario import Scenario, load_scenario  # noqa: E402
+from contracts.messages import FrameRequest, StepReply  # noqa: E402
+from scenario.model import Scenario, load_scenario  # noqa: E402
 from universe.camera import focal_length_px  # noqa: E402
 from universe.dynamics import AttitudeState, SpacecraftDynamics  # noqa: E402
 from universe.render import PerfectPointingCamera  # noqa: E402
 from universe.scene import render_at  # noqa: E402
+from scenario import compose
 
 RENDER_TARGET_MS = 15.0  # issue 3: at most 15 ms per 1024x1024 frame on one core
 BLOCK = 5  # renders (and reference frames) timed back to back
@@ -69,7 +70,7 @@ def render_medians_ms(scenario: Scenario, frames: int) -> list[tuple[str, float,
     as a run renders frames); the ratio of each pair of blocks' medians cancels the slow and fast spells of a shared
     machine, and the median of those ratios is reported."""
     u = scenario.universe
-    cam = PerfectPointingCamera(scenario)
+    cam = PerfectPointingCamera(compose.universe(scenario))
     rng = np.random.default_rng(0)
     out = []
     f = focal_length_px(u.camera)
@@ -121,7 +122,7 @@ def universe_run(scenario: Scenario, frame_every: int | None) -> tuple[float, fl
     ``frame_every``: request a frame every that many control periods (None: never)."""
     from universe.simulator import Universe
 
-    u = Universe(scenario)
+    u = compose.universe(scenario)
     n = u.dynamics.n_wheels
     zero = (0.0,) * n
     t0 = perf_counter()

@@ -32,10 +32,11 @@ from pathlib import Path  # noqa: E402
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from flyby.scenario import Scenario, load_scenario  # noqa: E402
+from scenario.model import Scenario, load_scenario  # noqa: E402
 from universe.camera import focal_length_px, frame_to_png8, render_frame, scene_electrons  # noqa: E402
 from universe.render import PerfectPointingCamera  # noqa: E402
 from universe.scene import scene_at  # noqa: E402
+from scenario import compose
 
 RENDER_TARGET_MS = 15.0  # issue 3: at most 15 ms per 1024x1024 frame on one core
 ROOT = Path(_HERE).parent
@@ -74,7 +75,7 @@ def main() -> None:
     scenario = load_scenario(args.scenario)
     u = scenario.universe
     cfg = u.camera if args.resolution is None else u.camera.model_copy(update={"resolution_px": args.resolution})
-    cam = PerfectPointingCamera(scenario)
+    cam = PerfectPointingCamera(compose.universe(scenario))
     rng = np.random.default_rng(0)
     side = cfg.resolution_px
     (ref_ms,) = median_ms(lambda: rng.standard_normal((side, side), dtype=np.float32), n=args.frames)

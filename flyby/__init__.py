@@ -1,1 +1,2 @@
-"""Shared contract of the flyby emulator: bus keys, messages, scenario schema, clock and launcher."""
+"""The application: the flyby command line, the launcher of the three node processes, the in-process runner, the
+operator console and the nodes' composition roots."""

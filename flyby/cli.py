@@ -7,10 +7,10 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from flyby.errors import ScenarioError
-from flyby.scenario import Scenario, load_run_inputs
+from contracts.errors import ScenarioError
+from contracts.exitcodes import EXIT_CONFIG
+from scenario.model import Scenario, load_run_inputs
 
-EXIT_CONFIG = 2
 
 
 def _load_or_report(path: Path) -> Scenario | None:
@@ -47,10 +47,11 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def cmd_render(args: argparse.Namespace) -> int:
     """Validate, then write the frames of perfect pointing as 8-bit PNGs and an animated GIF."""
-    from flyby.clock import WallClock
+    from contracts.clock import WallClock
 
     from PIL import Image
 
+    from scenario import compose
     from universe.render import RenderRequestError, display_frame, perfect_pointing_frames, render_times_s
 
     scenario = _load_or_report(args.scenario)
@@ -72,7 +73,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     clock = WallClock()  # clock.py is the one module that reads the machine's time
     wall0 = clock.now()
     images = []
-    for i, frame in enumerate(perfect_pointing_frames(scenario, times)):
+    for i, frame in enumerate(perfect_pointing_frames(compose.universe(scenario), times)):
         img = display_frame(frame.pixels, u.camera.bit_depth, args.size)
         Image.fromarray(img).save(args.out / f"frame_{i:05d}.png")
         # the GIF is smaller: noisy frames barely compress (~120 kB per 512 px frame)
@@ -109,7 +110,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--gif-size", type=int, default=256, help="side of the GIF images, px")
     d.add_argument("--gif-frame-ms", type=int, default=100, help="display time of each GIF frame, ms")
     d.set_defaults(func=cmd_render)
-    from ground.report import cmd_report
+    from analysis.report import cmd_report
     from ground.tmquery import add_tm_arguments
 
     rep = sub.add_parser("report", help="(re)write a run folder's flyby report: report.html, report/, figures.json")

@@ -17,13 +17,14 @@ from pathlib import Path
 import yaml
 import zenoh
 
-from flyby.bus import Keys, session_config
-from flyby.clock import WallClock
-from flyby.errors import DecodeError
-from flyby.messages import OperatorCommand, OperatorReply, TmLine, decode
-from flyby.runtime import Attachment
+from contracts.bus import Keys, session_config
+from contracts.exitcodes import ExitCode
+from contracts.clock import WallClock
+from contracts.errors import DecodeError
+from contracts.messages import OperatorCommand, OperatorReply, TmLine, decode
+from contracts.runtime import Attachment
 
-EXIT_OK, EXIT_REFUSED, EXIT_USAGE, EXIT_NO_GROUND = 0, 1, 2, 3
+EXIT_OK, EXIT_REFUSED, EXIT_USAGE, EXIT_NO_GROUND = ExitCode.OK, ExitCode.INTERNAL, ExitCode.INVALID_INPUT, ExitCode.PEER_FAILED
 
 
 def _key_value(items: list[str]) -> dict[str, object]:
@@ -45,7 +46,7 @@ def replay(run_dir: Path) -> int:
     """Print the operator lines of a recorded run, from its archive (with each packet's receipt time)."""
     import sqlite3
 
-    from flyby import pus
+    from contracts import pus
     from ground.node import tm_line
     from ground.segment import ReceivedPacket
 

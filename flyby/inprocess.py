@@ -12,12 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flyby.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
-from flyby.scenario import Scenario
-from ground.segment import GroundSegment, ReceivedPacket
-from obsw.software import FlightSoftware
+from contracts.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
+from ground.segment import ReceivedPacket
+from scenario import compose
+from scenario.model import Scenario
 from timeline.model import Timeline
-from universe.simulator import Universe
 
 
 @dataclass
@@ -33,9 +32,9 @@ class InProcessRun:
 def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through_codec: bool = False,
                    on_step: Callable[[StepRequest, StepReply, np.ndarray | None], None] | None = None) -> InProcessRun:
     """Run the scenario to its end; ``through_codec`` also encodes and decodes every message, as the bus does."""
-    sim = Universe(scenario)
-    fsw = FlightSoftware(scenario.obsw, scenario.universe.spacecraft, scenario.universe.camera)
-    ground = GroundSegment(scenario, timeline)
+    sim = compose.universe(scenario)
+    fsw = compose.flight_software(scenario)
+    ground = compose.ground_segment(scenario, timeline)
     out = InProcessRun()
 
     def ground_exchange() -> None:

@@ -24,14 +24,14 @@ from typing import IO
 
 import zenoh
 
-from flyby.bus import NODES, Keys, free_tcp_port, session_config
-from flyby.clock import WallClock, utc_stamp
-from flyby.errors import DecodeError
-from flyby.messages import Shutdown, Status, decode
-from flyby.runtime import Attachment
-from flyby.scenario import Scenario
+from contracts.bus import NODES, Keys, free_tcp_port, session_config
+from contracts.clock import WallClock, utc_stamp
+from contracts.errors import DecodeError
+from contracts.exitcodes import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_PEER
+from contracts.messages import Shutdown, Status, decode
+from contracts.runtime import Attachment
+from scenario.model import Scenario
 
-EXIT_OK, EXIT_INTERNAL, EXIT_CONFIG, EXIT_PEER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 
 
 def _die_with_parent() -> None:

@@ -1,25 +1,67 @@
-"""Command line shared by the three nodes (``python -m universe|obsw|ground``), so each starts alone on any host."""
+"""Command line shared by the three nodes (``python -m universe|obsw|ground``), so each starts alone on any host.
+
+This is the composition root of a node process: it loads the scenario, builds the node's core from its own
+section (``scenario.compose``) and hands it to the node's bus adapter. The nodes' ``__main__`` modules are the
+only node modules that import this package (see the import-linter contracts in pyproject.toml).
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import shutil
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
-import zenoh
+from contracts.bus import session_config
+from contracts.errors import ScenarioError
+from contracts.exitcodes import EXIT_CONFIG
+from scenario import compose
+from scenario.model import Scenario, load_run_inputs
 
-from flyby.bus import session_config
-from flyby.errors import ScenarioError
-from flyby.scenario import Scenario, load_run_inputs
-
-EXIT_CONFIG = 2
+log = logging.getLogger("flyby")
 
 
-def node_main(node: str, run: Callable[[zenoh.Config, Scenario, argparse.Namespace], int],
-              argv: Sequence[str] | None = None) -> int:
-    """Parse the common node options, load the scenario, set up logging, and call ``run``."""
+def ground_finisher(scenario: Scenario):  # type: ignore[no-untyped-def]
+    """What the ground node does once its run folder is complete: score the run and write the report."""
+
+    def finish(out: Path, lines: list[str], completed: bool) -> list[str]:
+        from analysis.report import ReportError, build_report
+
+        head = [f"scenario {scenario.name}, seed {scenario.seed}"]
+        try:
+            report, figures = build_report(out)
+        except ReportError as exc:
+            log.error("no report: %s", exc)
+            return head + lines
+        tail = [f"requirements: {'all PASS' if figures.all_pass else 'FAILED (see report)'}; report {report}"]
+        return head + figures.summary_lines() + lines + tail
+
+    return finish
+
+
+def _start(node: str, conf, scenario: Scenario, args: argparse.Namespace) -> int:  # type: ignore[no-untyped-def]
+    if node == "obsw":
+        from obsw.node import main as obsw_main
+
+        return obsw_main(conf, compose.flight_software(scenario), scenario.bus, args.run_id)
+    if node == "universe":
+        from universe.node import main as universe_main
+
+        return universe_main(conf, lambda: compose.universe(scenario), scenario.bus, args.run_id, args.out,
+                             args.realtime)
+    from ground.node import main as ground_main
+
+    # the report reads the scenario from the run folder; keep a copy there when started alone
+    if not (args.out / "scenario.yaml").exists():
+        shutil.copyfile(args.config, args.out / "scenario.yaml")
+    return ground_main(conf, compose.ground_segment(scenario, args.timeline), scenario.bus, args.run_id, args.out,
+                       ground_finisher(scenario))
+
+
+def node_main(node: str, argv: Sequence[str] | None = None) -> int:
+    """Parse the common node options, load the scenario, set up logging, and run ``node``."""
     p = argparse.ArgumentParser(prog=f"python -m {node}", description=f"The {node} node of a flyby run.")
     p.add_argument("--config", required=True, type=Path, help="scenario YAML file")
     p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
@@ -42,4 +84,4 @@ def node_main(node: str, run: Callable[[zenoh.Config, Scenario, argparse.Namespa
         return EXIT_CONFIG
     conf = session_config(args.listen, args.connect, scenario.bus.multicast_scouting)
     args.out.mkdir(parents=True, exist_ok=True)
-    return run(conf, scenario, args)
+    return _start(node, conf, scenario, args)

@@ -1,6 +1,6 @@
 """The telemetry archive: every TM packet kept raw and decoded in SQLite, and appended to a raw ``tm.bin``.
 
-This module is an adapter (it owns the disk); decoding is ``flyby.pus``. Tables:
+This module is an adapter (it owns the disk); decoding is ``contracts.pus``. Tables:
 
 - ``packets``: one row per packet received: ground receipt time (UTC s), OBT, APID, sequence count, service,
   subtype, message counter, report type, the raw octets, and the decoding error (NULL when decoded). An undecodable
@@ -38,8 +38,8 @@ from typing import Any, NamedTuple
 
 from pydantic import BaseModel
 
-from flyby.errors import FlybyError
-from flyby.pus import MAX_APID, MAX_SEQ_COUNT, SEQ_COUNT_MODULO, PacketError, TmHeader, decode_tm
+from contracts.errors import FlybyError
+from contracts.pus import MAX_APID, MAX_SEQ_COUNT, SEQ_COUNT_MODULO, PacketError, TmHeader, decode_tm
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS packets (

@@ -4,17 +4,8 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from flyby.model import Frozen
-
-
-class LinkConfig(Frozen):
-    """Deep-space link between ground and spacecraft (DESIGN: ~33 s one way at 10 million km)."""
-
-    one_way_light_time_s: float = Field(33.4, ge=0, description="one-way light time, s")
-    downlink_rate_bps: float = Field(
-        64000.0, gt=0, description="downlink data rate, bit/s (a CubeSat X-band link via DSN class)"
-    )
-    uplink_rate_bps: float = Field(2000.0, gt=0, description="uplink data rate, bit/s")
+from contracts.link import LinkConfig
+from contracts.model import Frozen
 
 
 class ReportConfig(Frozen):
@@ -65,6 +56,25 @@ class ReportConfig(Frozen):
     plot_dpi: int = Field(100, ge=50, le=300, description="resolution of the PNG plots, dots per inch (screen class)")
 
 
+Vec3 = tuple[float, float, float]
+
+
+class FlybyBelief(Frozen):
+    """What ground believes of the flyby before the pass (its navigation's nominal trajectory and uncertainty).
+
+    In a scenario it is the truth plus a knowledge error drawn with the seed (``universe.uncertainty``); the
+    composition of a run computes it, the ground segment only uses it.
+    """
+
+    ca_utc_s: float = Field(description="nominal time of closest approach, s after the scenario epoch")
+    ca_distance_km: float = Field(gt=0, description="nominal distance at closest approach, km")
+    speed_km_s: float = Field(gt=0, description="relative speed, km/s")
+    approach_direction: Vec3 = Field(description="unit vector of the relative velocity, inertial frame")
+    ca_direction: Vec3 = Field(description="unit vector target -> spacecraft at closest approach, inertial frame")
+    ca_time_sigma_s: float = Field(ge=0, description="one-sigma uncertainty of the C/A time, s")
+    ca_distance_sigma_km: float = Field(ge=0, description="one-sigma uncertainty of the C/A distance, km")
+
+
 class GroundConfig(Frozen):
     """What the ground segment does during a run."""
 
@@ -75,7 +85,11 @@ class GroundConfig(Frozen):
         description="true time at which ground uploads the nominal trajectory, s after the epoch "
         "(default: at the start of the run)",
     )
-    link: LinkConfig = LinkConfig()
+    link: LinkConfig = Field(
+        LinkConfig(),
+        description="ground's knowledge of the link (light time for upload margins and time reports); defaults to "
+        "the true link, universe.link",
+    )
     timeline_file: str | None = Field(
         None, description="command timeline (YAML or CSV) uploaded after the nominal trajectory; a relative path is "
         "taken from the scenario file's folder"

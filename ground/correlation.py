@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydantic import Field, field_validator
 
-from flyby.errors import FlybyError
-from flyby.model import Frozen
+from contracts.errors import FlybyError
+from contracts.model import Frozen
 
 
 class CorrelationError(FlybyError):

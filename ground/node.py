@@ -16,18 +16,18 @@ from typing import IO
 import numpy as np
 import zenoh
 
-from flyby.bus import Keys
-from flyby.clock import WallClock
-from flyby.errors import NodeFailure
-from flyby import pus
-from flyby.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
-from flyby.runtime import EXIT_OK, Attachment
-from flyby.scenario import Scenario
+from collections.abc import Callable
+
+from contracts.bus import BusConfig, Keys
+from contracts.clock import WallClock
+from contracts.errors import NodeFailure
+from contracts import pus
+from contracts.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
+from contracts.exitcodes import EXIT_OK
+from contracts.runtime import Attachment
 from ground.archive import Archive
-from ground.report import ReportError, build_report
 from ground.operator import OperatorError, command_request, timeline_request, trajectory_request
 from ground.segment import GroundSegment, ReceivedPacket
-from timeline.model import Timeline
 
 log = logging.getLogger("ground")
 
@@ -44,10 +44,9 @@ class TruthLog:
         self._f: IO[str] = open(path, "w", newline="")
         self._w = csv.writer(self._f)
         self._header = False
-        self.rows: list[TruthRecord] = []
 
     def add(self, rec: TruthRecord) -> None:
-        """Append one record (kept in memory too, for the summary)."""
+        """Append one record."""
         if not self._header:
             n = len(rec.wheel_momentum_nms)
             self._w.writerow([*TRUTH_COLUMNS, "frame_id", "dimorphos_col", "dimorphos_row", "didymos_col",
@@ -62,24 +61,16 @@ class TruthLog:
                           *(rec.los_dimorphos_inertial or ("", "", "")), *(rec.los_didymos_inertial or ("", "", "")),
                           *(rec.dimorphos_camera or ("", "", "")),
                           "" if rec.range_didymos_m is None else rec.range_didymos_m])
-        self.rows.append(rec)
 
     def close(self) -> None:
         """Flush and close the file."""
         self._f.close()
 
 
-def summary_lines(scenario: Scenario, segment: GroundSegment, truth: list[TruthRecord], archive: Archive) -> list[str]:
-    """The figures a user wants at the end of a run, one per line."""
-    lines = [f"scenario {scenario.name}, seed {scenario.seed}"]
-    if truth:
-        fov = scenario.universe.camera.fov_deg
-        err_deg = np.degrees([r.pointing_error_rad for r in truth])
-        rate_deg_s = np.degrees([float(np.linalg.norm(r.omega_rad_s)) for r in truth])
-        in_fov = np.array([r.target_in_fov for r in truth])
-        lines.append(f"target in field of view: {100 * in_fov.mean():.1f}% of control periods; "
-                     f"max pointing error {err_deg.max():.3f} deg (half FOV {fov / 2:.2f} deg); "
-                     f"peak body rate {rate_deg_s.max():.2f} deg/s")
+def summary_lines(segment: GroundSegment, archive: Archive) -> list[str]:
+    """What ground can tell at the end of a run, one line each: telemetry received and the time correlation
+    (the requirement figures are the analysis's, added by whoever composed the node)."""
+    lines = []
     counts = archive.counts()
     lines.append(f"telemetry: {counts.get('stored', 0)} packets archived, {segment.state.undecodable} undecodable, "
                  f"{len(archive.gaps())} sequence gap(s)")
@@ -133,13 +124,13 @@ def tm_line(p: ReceivedPacket) -> TmLine | None:
     return None
 
 
-def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthLog, scenario: Scenario,
+def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthLog, bus_cfg: BusConfig,
         tc_log: IO[bytes] | None = None) -> None:
     """Answer ground steps until the run ends."""
     last: tuple[int, GroundReply] | None = None
     answered: dict[int, OperatorReply] = {}
     last_status = -1.0
-    wait = scenario.bus.startup_timeout_s + scenario.bus.reply_timeout_s
+    wait = bus_cfg.startup_timeout_s + bus_cfg.reply_timeout_s
     while True:
         got = bus.receive(wait)
         if got is None:
@@ -154,7 +145,7 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
             continue
         if not isinstance(msg, GroundStep):
             continue
-        wait = scenario.bus.reply_timeout_s
+        wait = bus_cfg.reply_timeout_s
         if last is not None and msg.step <= last[0]:
             if msg.step == last[0]:
                 bus.publish(bus.keys.ground_reply, last[1])
@@ -185,10 +176,15 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
             last_status = now
 
 
-def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timeline: Timeline | None = None) -> int:
+Finisher = Callable[[Path, list[str], bool], list[str]]
+"""Called once the run folder is complete: (folder, ground's summary lines, whether the run ended normally) ->
+the summary lines to keep (the composition adds the requirement figures and writes the report)."""
+
+
+def main(conf: zenoh.Config, segment: GroundSegment, bus_cfg: BusConfig, run_id: str, out: Path,
+         finish: Finisher | None = None) -> int:
     """Run the ground node until the run ends or a peer fails; return the process exit code."""
     keys = Keys(run_id)
-    segment = GroundSegment(scenario, timeline)
     archive = Archive(out / "archive.sqlite", tm_bin=out / "tm.bin")
     truth = TruthLog(out / "truth.csv")
     with zenoh.open(conf) as session:
@@ -199,12 +195,12 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
         bus.declare_alive()
         try:
             with open(out / "tc.bin", "wb") as tc_log:
-                code, _ = bus.guarded(lambda: run(bus, segment, archive, truth, scenario, tc_log))
+                code, _ = bus.guarded(lambda: run(bus, segment, archive, truth, bus_cfg, tc_log))
         finally:
             bus.close()
     # whatever happened, keep what was received: write the summary, then close the archive
     truth.close()
-    lines = summary_lines(scenario, segment, truth.rows, archive)
+    lines = summary_lines(segment, archive)
     archive.close()
     if code != EXIT_OK:
         lines.insert(0, "run ended early: the figures cover only what was received")
@@ -213,15 +209,9 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, timelin
     (out / "correlation.json").write_text(json.dumps({
         "offset_s": c.offset_s, "drift": c.drift, "offset_sigma_s": c.offset_sigma_s,
         "drift_sigma_ppm": c.drift_sigma_ppm, "n_reports": c.n_reports, "residual_rms_s": c.residual_rms_s}, indent=2))
+    if finish is not None:
+        lines = finish(out, lines, code == EXIT_OK)
+        (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
     for line in lines:
         log.info("%s", line)
-    if (out / "scenario.yaml").exists():
-        try:
-            report, figures = build_report(out)
-        except ReportError as exc:
-            log.error("no report: %s", exc)
-        else:
-            lines.append(f"requirements: {'all PASS' if figures.all_pass else 'FAILED (see report)'}; report {report}")
-            (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
-            log.info("report written: %s", report)
     return code

@@ -11,9 +11,9 @@ from typing import Any
 import yaml
 from pydantic import Field, ValidationError
 
-from flyby import pus
-from flyby.errors import FlybyError
-from flyby.model import Frozen
+from contracts import pus
+from contracts.errors import FlybyError
+from contracts.model import Frozen
 from ground.segment import GroundSegment
 from ground.uplink import UplinkError, telecommand_of
 from timeline.convert import utc_seconds
@@ -114,7 +114,7 @@ def trajectory_request(payload: bytes, segment: GroundSegment) -> pus.UploadNomi
         from datetime import datetime
 
         try:
-            ca_s = utc_seconds(datetime.fromisoformat(t.ca_time_utc.replace("Z", "+00:00")), segment.scenario.epoch_utc)
+            ca_s = utc_seconds(datetime.fromisoformat(t.ca_time_utc.replace("Z", "+00:00")), segment.epoch_utc)
         except (ValueError, TypeError) as exc:
             raise OperatorError(f"trajectory: ca_time_utc: {exc}") from None
     else:

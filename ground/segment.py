@@ -10,16 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
 
-from flyby import pus
-from flyby.scenario import Scenario
-from flyby.seeding import rng_streams
+from contracts import pus
+from ground.config import FlybyBelief, GroundConfig
 from ground.correlation import Correlation, CorrelationError, TimeReport, fitted_correlation
 from ground.uplink import schedule_insert
 from timeline.convert import resolved_commands
 from timeline.model import Timeline, TimelineError
-from universe.geometry import nominal_ca
 
 
 @dataclass(frozen=True)
@@ -50,12 +47,12 @@ class GroundState:
 class GroundSegment:
     """Ground's logic for one run."""
 
-    def __init__(self, scenario: Scenario, timeline: Timeline | None = None) -> None:
-        self.scenario = scenario
-        self.cfg = scenario.ground
-        u = scenario.universe
-        # Ground's belief about the flyby: truth plus the seeded knowledge error of the scenario.
-        self.nominal_ca_utc_s, self.nominal_ca_km = nominal_ca(u.flyby, u.uncertainty, rng_streams(scenario.seed)["nominal"])
+    def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None) -> None:
+        """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags."""
+        self.cfg = cfg
+        self.belief = belief
+        self.epoch_utc = epoch_utc
+        self.nominal_ca_utc_s, self.nominal_ca_km = belief.ca_utc_s, belief.ca_distance_km
         self.correlation = Correlation.exact(self.cfg.a_priori_obt_offset_s, 0.0)
         self.state = GroundState()
         self.timeline = timeline
@@ -63,21 +60,15 @@ class GroundSegment:
 
     def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
         """The nominal trajectory telecommand, its C/A time in OBT by the current correlation."""
-        f = self.scenario.universe.flyby
-        unc = self.scenario.universe.uncertainty
-        e_v = np.asarray(f.approach_direction, dtype=float)
-        e_v /= np.linalg.norm(e_v)
-        e_ca = np.asarray(f.ca_direction, dtype=float)
-        e_ca = e_ca - (e_ca @ e_v) * e_v
-        e_ca /= np.linalg.norm(e_ca)
+        b = self.belief
         return pus.UploadNominalTrajectory(
-            ca_obt_s=self.correlation.to_obt(self.nominal_ca_utc_s),
-            ca_distance_km=self.nominal_ca_km,
-            speed_km_s=f.speed_km_s,
-            approach_direction=tuple(float(c) for c in e_v),
-            ca_direction=tuple(float(c) for c in e_ca),
-            sigma_ca_time_s=unc.ca_time_sigma_s,
-            sigma_ca_distance_km=unc.ca_distance_sigma_km,
+            ca_obt_s=self.correlation.to_obt(b.ca_utc_s),
+            ca_distance_km=b.ca_distance_km,
+            speed_km_s=b.speed_km_s,
+            approach_direction=b.approach_direction,
+            ca_direction=b.ca_direction,
+            sigma_ca_time_s=b.ca_time_sigma_s,
+            sigma_ca_distance_km=b.ca_distance_sigma_km,
         )
 
     @property
@@ -131,7 +122,7 @@ class GroundSegment:
         assert timeline is not None
         source = self.cfg.timeline_file or "<timeline>"
         not_before = self.correlation.to_obt(utc_s + self.cfg.link.one_way_light_time_s + self.cfg.upload_margin_s)
-        kw = dict(epoch_utc=self.scenario.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
+        kw = dict(epoch_utc=self.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
         try:
             resolved = resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
         except TimelineError as err:

@@ -15,10 +15,10 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from flyby.errors import FlybyError
+from contracts.errors import FlybyError
+from contracts.exitcodes import EXIT_CONFIG as EXIT_USAGE
 from ground.archive import Archive, ArchiveError, Sample
 
-EXIT_USAGE = 2
 
 
 class TmQueryError(FlybyError):

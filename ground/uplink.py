@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from flyby import pus
+from contracts import pus
 from timeline.convert import ResolvedCommand
 from timeline.model import Command
 

@@ -1,8 +1,7 @@
-"""``python -m obsw``: start the on-board software node alone."""
+"""``python -m obsw``: start the obsw node alone (composed from the scenario by flyby.nodecli)."""
 
 import sys
 
 from flyby.nodecli import node_main
-from obsw.node import main
 
-sys.exit(node_main("obsw", lambda conf, sc, a: main(conf, sc, a.run_id)))
+sys.exit(node_main("obsw"))

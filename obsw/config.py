@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from flyby.model import Frozen
+from contracts.model import Frozen
 
 
 class ControlConfig(Frozen):
@@ -112,25 +112,11 @@ class TrackingConfig(Frozen):
         "hold it; the recognised trajectory carries the LOS motion, so a slope is noise or a misidentified "
         "blob, and one at C/A+48 s drove the pointing 1.2 deg off in 3 s of extrapolation)",
     )
-    boresight_body: tuple[float, float, float] = Field(
-        (0.0, 0.0, 1.0), description="on-board knowledge of the camera boresight, body axes (camera config default)"
-    )
     plane_normal_axis_body: tuple[float, float, float] = Field(
         (0.0, 1.0, 0.0),
         description="body axis held along the flyby-plane normal, so the slew is about it alone (body Y: the "
-        "smaller transverse inertia, 0.117 vs 0.152 kg m^2); must be orthogonal to boresight_body",
+        "smaller transverse inertia, 0.117 vs 0.152 kg m^2); must be orthogonal to camera.boresight_body",
     )
-
-    @model_validator(mode="after")
-    def _orthogonal_axes(self) -> TrackingConfig:
-        b, p = self.boresight_body, self.plane_normal_axis_body
-        nb = sum(x * x for x in b) ** 0.5
-        np_ = sum(x * x for x in p) ** 0.5
-        if nb < 1e-9 or np_ < 1e-9:
-            raise ValueError(f"boresight_body {b} and plane_normal_axis_body {p} must be non-zero")
-        if abs(sum(x * y for x, y in zip(b, p))) > 1e-6 * nb * np_:
-            raise ValueError(f"plane_normal_axis_body {p} must be orthogonal to boresight_body {b}")
-        return self
 
 
 class ModesConfig(Frozen):
@@ -148,10 +134,6 @@ class ImagingConfig(Frozen):
     Pixel quantities are at the binned (512x512) scale; brightness is in 8-bit compressed DN.
     """
 
-    fov_deg: float = Field(
-        2.9, gt=0, lt=90, description="on-board knowledge of the horizontal field of view, deg (paper)"
-    )
-    bit_depth: int = Field(12, ge=8, le=16, description="bits per pixel of the raw frames (paper: 12)")
     binned_size_px: int = Field(512, gt=0, description="side of the binned image, px (paper: 512x512)")
     compression_law: Literal["sqrt", "shift"] = Field(
         "sqrt",
@@ -267,11 +249,43 @@ class ImagingConfig(Frozen):
     )
 
 
+class CameraKnowledge(Frozen):
+    """What the flight software knows of its camera (the true camera is ``universe.camera``; by default the same)."""
+
+    fov_deg: float = Field(2.9, gt=0, lt=90, description="horizontal field of view, deg (paper)")
+    resolution_px: int = Field(1024, gt=0, description="frame side, px (paper: 1024x1024 or 2048x2048)")
+    bit_depth: int = Field(12, ge=8, le=16, description="bits per pixel of the raw frames (paper: 12)")
+    boresight_body: tuple[float, float, float] = Field(
+        (0.0, 0.0, 1.0), description="camera boresight in body axes (a CubeSat camera along the long +Z axis)"
+    )
+    exposure_s: float = Field(0.01, gt=0, description="exposure time until a command changes it, s")
+    frame_period_s: float = Field(1.0, gt=0, description="time between frames until a command changes it, OBT s")
+
+    @field_validator("boresight_body")
+    @classmethod
+    def _nonzero(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if sum(c * c for c in v) < 1e-18:
+            raise ValueError("must be a non-zero vector")
+        return v
+
+
+class WheelKnowledge(Frozen):
+    """What the flight software knows of its reaction wheels (truth: ``universe.spacecraft.wheels``)."""
+
+    layout: Literal["orthogonal", "pyramid"] = Field("orthogonal", description="three orthogonal or four in a pyramid")
+    pyramid_angle_deg: float = Field(54.7356, gt=0, lt=90, description="pyramid wheel-axis elevation, deg")
+    max_torque_nm: float = Field(0.007, gt=0, description="torque limit per wheel, N m (paper)")
+    max_momentum_nms: float = Field(0.1, gt=0, description="momentum limit per wheel, N m s (paper)")
+    inertia_kgm2: float = Field(
+        1.0e-4, gt=0, description="wheel rotor inertia about its axis, kg m^2 (a CubeSat RW of 0.1 Nms at ~9500 rpm)"
+    )
+
+
 class ObswConfig(Frozen):
     """Everything the on-board software is configured with before the flyby."""
 
     housekeeping_period_s: float = Field(1.0, gt=0, description="PUS service 3 housekeeping period, OBT s")
-    control_period_s: float = Field(0.1, gt=0, description="nominal control period, OBT s (DESIGN: 10 Hz)")
+    control_period_s: float = Field(0.1, gt=0, description="nominal control period, OBT s (10 Hz)")
     clock_jump_threshold_s: float = Field(
         0.05, gt=0, description="an OBT step this far from the control period between two periods is reported as a "
         "clock jump, s (well above oscillator drift and jitter: 20 ppm is 2 us per period)"
@@ -294,8 +308,21 @@ class ObswConfig(Frozen):
         ((0.152, 0.0, 0.0), (0.0, 0.117, 0.0), (0.0, 0.0, 0.058)),
         description="on-board knowledge of the inertia matrix, kg m^2",
     )
+    camera: CameraKnowledge = CameraKnowledge()
+    wheels: WheelKnowledge = WheelKnowledge()
     control: ControlConfig = ControlConfig()
     modes: ModesConfig = ModesConfig()
     recognition: RecognitionConfig = RecognitionConfig()
     tracking: TrackingConfig = TrackingConfig()
     imaging: ImagingConfig = ImagingConfig()
+
+    @model_validator(mode="after")
+    def _orthogonal_axes(self) -> ObswConfig:
+        b, p = self.camera.boresight_body, self.tracking.plane_normal_axis_body
+        nb = sum(x * x for x in b) ** 0.5
+        np_ = sum(x * x for x in p) ** 0.5
+        if np_ < 1e-9:
+            raise ValueError(f"tracking.plane_normal_axis_body: {p} must be non-zero")
+        if abs(sum(x * y for x, y in zip(b, p))) > 1e-6 * nb * np_:
+            raise ValueError(f"tracking.plane_normal_axis_body: {p} must be orthogonal to camera.boresight_body {b}")
+        return self

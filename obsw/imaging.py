@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from obsw.config import ImagingConfig
+from obsw.config import CameraKnowledge, ImagingConfig
 
 MAD_TO_SIGMA = 1.4826  # one Gaussian sigma per median absolute deviation
 
@@ -99,30 +99,30 @@ class Binarisation:
     noise_sigma_dn8: float
 
 
-def compression_lut(cfg: ImagingConfig) -> np.ndarray:
+def compression_lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
     """Return the uint8 look-up table, one entry per raw value, of the configured 12->8 bit law (monotonic)."""
-    vmax = (1 << cfg.bit_depth) - 1
+    vmax = (1 << bit_depth) - 1
     values = np.arange(vmax + 1, dtype=np.float64)
     if cfg.compression_law == "sqrt":
         return np.floor(255.0 * np.sqrt(values / vmax) + 0.5).astype(np.uint8)
-    return (np.arange(vmax + 1, dtype=np.int64) >> (cfg.bit_depth - 8)).astype(np.uint8)
+    return (np.arange(vmax + 1, dtype=np.int64) >> (bit_depth - 8)).astype(np.uint8)
 
 
 _LUT_CACHE: dict[tuple[int, str], np.ndarray] = {}
 
 
-def _lut(cfg: ImagingConfig) -> np.ndarray:
+def _lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
     """Return the compression table of ``cfg``, built once per law (it is a constant of the FPGA)."""
-    key = (cfg.bit_depth, cfg.compression_law)
+    key = (bit_depth, cfg.compression_law)
     lut = _LUT_CACHE.get(key)
     if lut is None:
-        lut = compression_lut(cfg)
+        lut = compression_lut(cfg, bit_depth)
         lut.setflags(write=False)
         _LUT_CACHE[key] = lut
     return lut
 
 
-def binned(frame: np.ndarray, cfg: ImagingConfig) -> np.ndarray:
+def binned(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
     """Return the frame binned to cfg.binned_size_px by the rounded mean of square blocks (raw bit depth)."""
     if frame.ndim != 2 or frame.shape[0] != frame.shape[1]:
         raise FrameError(f"frame must be a square 2-D array, got shape {frame.shape}")
@@ -133,10 +133,10 @@ def binned(frame: np.ndarray, cfg: ImagingConfig) -> np.ndarray:
     if side % n != 0:
         raise FrameError(f"frame side {side} px is not a multiple of binned_size_px {n}")
     f = side // n
-    vmax = (1 << cfg.bit_depth) - 1
+    vmax = (1 << bit_depth) - 1
     # a value beyond the bit depth would wrap the block sums: refuse it rather than alias it
     if int(frame.max(initial=0)) > vmax or (frame.dtype.kind == "i" and int(frame.min(initial=0)) < 0):
-        raise FrameError(f"frame pixel values exceed the {cfg.bit_depth}-bit range 0..{vmax}")
+        raise FrameError(f"frame pixel values exceed the {bit_depth}-bit range 0..{vmax}")
     acc = np.uint16 if vmax * f * f <= 0xFFFF else np.uint32
     a = frame if frame.dtype == acc else frame.astype(acc)
     if f == 1:
@@ -159,9 +159,9 @@ def binned(frame: np.ndarray, cfg: ImagingConfig) -> np.ndarray:
     return out
 
 
-def compressed_8bit(binned_image: np.ndarray, cfg: ImagingConfig) -> np.ndarray:
+def compressed_8bit(binned_image: np.ndarray, cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
     """Return the 8-bit image of the configured compression law (for display and downlink)."""
-    return np.take(_lut(cfg), binned_image)
+    return np.take(_lut(cfg, bit_depth), binned_image)
 
 
 def otsu_threshold(hist: np.ndarray) -> int:
@@ -636,11 +636,12 @@ def split_diffuse_blobs(
     return [b for b in out if b.label not in replaced]
 
 
-def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | None = None) -> Detections:
+def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | None = None,
+                  camera: CameraKnowledge = CameraKnowledge()) -> Detections:
     """Return the blobs of a raw frame and the identified Didymos and Dimorphos with their offsets from centre."""
-    image = binned(frame, cfg)
+    image = binned(frame, cfg, camera.bit_depth)
     n = cfg.binned_size_px
-    lut = _lut(cfg)
+    lut = _lut(cfg, camera.bit_depth)
     hist_raw = np.bincount(image.ravel(), minlength=lut.size)
     hist8 = np.bincount(lut, weights=hist_raw, minlength=256)
     thr = binarisation(hist8, cfg)
@@ -665,7 +666,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
         if b is None:
             return None, None
         px = (b.centroid_col_row[0] - centre, b.centroid_col_row[1] - centre)
-        return px, offset_rad(px, cfg.fov_deg, n)
+        return px, offset_rad(px, camera.fov_deg, n)
 
     did_px, did_rad = offsets(didymos)
     dim_px, dim_rad = offsets(dimorphos)

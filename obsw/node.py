@@ -12,12 +12,11 @@ import logging
 import numpy as np
 import zenoh
 
-from flyby.bus import Keys
-from flyby.clock import WallClock
-from flyby.errors import NodeFailure
-from flyby.messages import StepReply, StepRequest
-from flyby.runtime import Attachment
-from flyby.scenario import Scenario
+from contracts.bus import BusConfig, Keys
+from contracts.clock import WallClock
+from contracts.errors import NodeFailure
+from contracts.messages import StepReply, StepRequest
+from contracts.runtime import Attachment
 from obsw.software import FlightSoftware
 
 log = logging.getLogger("obsw")
@@ -35,17 +34,17 @@ def frame_pixels(req: StepRequest, blob: bytes) -> np.ndarray | None:
     return np.frombuffer(blob, dtype="<u2").reshape(meta.height, meta.width)
 
 
-def run(bus: Attachment, fsw: FlightSoftware, scenario: Scenario) -> None:
+def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig) -> None:
     """Answer steps until the universe ends the run."""
     last: tuple[int, StepReply] | None = None
     last_status = -1.0
     clock = bus.clock
-    wait = scenario.bus.startup_timeout_s + scenario.bus.reply_timeout_s
+    wait = bus_cfg.startup_timeout_s + bus_cfg.reply_timeout_s
     while True:
         got = bus.receive(wait)
         if got is None:
             raise NodeFailure("universe", bus.sim_time_s, f"stopped sending steps (nothing for {wait:g} s)")
-        wait = scenario.bus.reply_timeout_s
+        wait = bus_cfg.reply_timeout_s
         req = got.msg
         if not isinstance(req, StepRequest):
             continue
@@ -73,7 +72,7 @@ def run(bus: Attachment, fsw: FlightSoftware, scenario: Scenario) -> None:
             last_status = now
 
 
-def main(conf: zenoh.Config, scenario: Scenario, run_id: str) -> int:
+def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: str) -> int:
     """Run the OBSW node until the run ends or a peer fails; return the process exit code."""
     keys = Keys(run_id)
     with zenoh.open(conf) as session:
@@ -81,8 +80,7 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str) -> int:
         bus.subscribe(keys.step, StepRequest)
         bus.watch_peers()
         bus.declare_alive()
-        fsw = FlightSoftware(scenario.obsw, scenario.universe.spacecraft, scenario.universe.camera)
         try:
-            return bus.guarded(lambda: run(bus, fsw, scenario))[0]
+            return bus.guarded(lambda: run(bus, fsw, bus_cfg))[0]
         finally:
             bus.close()

@@ -26,8 +26,8 @@ from collections import deque
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from flyby import pus
-from flyby.messages import FrameRequest, StepReply, StepRequest
+from contracts import pus
+from contracts.messages import FrameRequest, StepReply, StepRequest
 from obsw.config import ObswConfig
 from obsw.control import pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
@@ -38,7 +38,6 @@ from obsw.recognition import TrajectoryRecognizer
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
 from obsw.tracking import Reference, TrackingLoop
 from obsw.trajectory import NominalTrajectory
-from universe.config import CameraConfig, SpacecraftConfig
 
 TRACKING_MODES = (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING)
 ATTITUDE_HISTORY_PERIODS = 32  # attitude estimates kept to turn a frame's LOS with the attitude at its exposure
@@ -57,10 +56,10 @@ def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
 class FlightSoftware:
     """The on-board software of the flyby, advanced one control period per ``step``."""
 
-    def __init__(self, cfg: ObswConfig, spacecraft: SpacecraftConfig, camera: CameraConfig) -> None:
+    def __init__(self, cfg: ObswConfig) -> None:
         self.cfg = cfg
-        self.camera = camera
-        w = spacecraft.wheels
+        self.camera = cfg.camera
+        w = cfg.wheels
         self.axes = wheel_axes_body(w.layout, w.pyramid_angle_deg)
         self.max_torque_nm = w.max_torque_nm
         self.max_momentum_nms = w.max_momentum_nms
@@ -68,13 +67,13 @@ class FlightSoftware:
         self.inertia = np.asarray(cfg.inertia_kgm2, dtype=float)
         self.modes = ModeManager(cfg.modes)
         self.schedule = TimeBasedSchedule(cfg.schedule_capacity, cfg.schedule_margin_s, payload_check=self._check_tc)
-        self.tracking = TrackingLoop(cfg.tracking)
+        self.tracking = TrackingLoop(cfg.tracking, cfg.camera.boresight_body)
         self.trajectory: NominalTrajectory | None = None
         self.recognizer: TrajectoryRecognizer | None = None
         self.detections: Detections | None = None
         self.imaging = False
-        self.frame_period_s = camera.frame_period_s
-        self.exposure_s = camera.exposure_s
+        self.frame_period_s = cfg.camera.frame_period_s
+        self.exposure_s = cfg.camera.exposure_s
         self._next_frame_obt: float | None = None
         self._tm_seq = 0
         self._msg_counter = 0
@@ -276,7 +275,7 @@ class FlightSoftware:
     # -- imaging -------------------------------------------------------------------------------------------
     def _image(self, frame: np.ndarray, req: StepRequest) -> tuple[float, np.ndarray] | None:
         """Process a frame; return (exposure OBT s, measured inertial LOS of Dimorphos), or None if not seen."""
-        det = process_frame(frame, self.cfg.imaging, self.detections)
+        det = process_frame(frame, self.cfg.imaging, self.detections, self.camera)
         self.detections = det
         meta = req.frame
         assert meta is not None
@@ -377,7 +376,7 @@ class FlightSoftware:
             ref = Reference(q_des=q if self.last_reference is None else self.last_reference.q_des,
                             omega_des_body=np.zeros(3), alpha_des_body=np.zeros(3))
         self.last_reference = ref
-        boresight_now = Rotation.from_quat(q).apply(np.asarray(self.cfg.tracking.boresight_body, dtype=float))
+        boresight_now = Rotation.from_quat(q).apply(np.asarray(self.camera.boresight_body, dtype=float))
         if los_i is not None:
             self.pointing_error_est_rad = float(np.arccos(np.clip(boresight_now @ los_i, -1, 1)))
         body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)

@@ -89,9 +89,9 @@ def _left_jacobian(phi: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.eye(3) + (1 - np.cos(angle)) / angle**2 * k + (angle - np.sin(angle)) / angle**3 * (k @ k)
 
 
-def _body_triad(cfg: TrackingConfig) -> NDArray[np.float64]:
+def _body_triad(cfg: TrackingConfig, boresight_body: tuple[float, float, float]) -> NDArray[np.float64]:
     """Columns: unit boresight, unit plane-normal axis (made exactly orthogonal), and their cross product."""
-    b = np.asarray(cfg.boresight_body, dtype=float)
+    b = np.asarray(boresight_body, dtype=float)
     b = b / np.linalg.norm(b)
     p = np.asarray(cfg.plane_normal_axis_body, dtype=float)
     p = p - float(p @ b) * b
@@ -114,9 +114,10 @@ def _predicted_matrix(trajectory: NominalTrajectory, obt_s: float, body_triad: N
     return np.column_stack([los, n, _cross(los, n)]) @ body_triad.T
 
 
-def predicted_attitude(trajectory: NominalTrajectory, obt_s: float, cfg: TrackingConfig) -> Rotation:
+def predicted_attitude(trajectory: NominalTrajectory, obt_s: float, cfg: TrackingConfig,
+                       boresight_body: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> Rotation:
     """Attitude putting the boresight on the predicted LOS and the plane-normal body axis on the plane normal."""
-    return Rotation.from_matrix(_predicted_matrix(trajectory, obt_s, _body_triad(cfg)))
+    return Rotation.from_matrix(_predicted_matrix(trajectory, obt_s, _body_triad(cfg, boresight_body)))
 
 
 _Line = tuple[float, NDArray[np.float64], NDArray[np.float64]]
@@ -125,11 +126,11 @@ _Line = tuple[float, NDArray[np.float64], NDArray[np.float64]]
 class TrackingLoop:
     """Second-order tracking loop; one ``update`` per control period. Pure: time and inputs come as arguments."""
 
-    def __init__(self, cfg: TrackingConfig) -> None:
+    def __init__(self, cfg: TrackingConfig, boresight_body: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> None:
         self.cfg = cfg
         self._kp = 2.0 * cfg.damping * cfg.natural_frequency_rad_s
         self._ki = cfg.natural_frequency_rad_s**2
-        self._triad = _body_triad(cfg)
+        self._triad = _body_triad(cfg, boresight_body)
         self.reset()
 
     def reset(self) -> None:

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, model_validator
 
-from flyby.model import Frozen
+from contracts.model import Frozen
 
 Vec3 = tuple[float, float, float]
 FloatOrArray = float | NDArray[np.float64]

@@ -18,8 +18,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, ValidationError, field_validator, model_validator
 
-from flyby.errors import FlybyError
-from flyby.model import Frozen
+from contracts.errors import FlybyError
+from contracts.model import Frozen
 
 MODES: tuple[str, ...] = ("SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING")
 """On-board modes a command may request (DESIGN: mode manager)."""

@@ -1,8 +1,7 @@
-"""``python -m universe``: start the universe node alone."""
+"""``python -m universe``: start the universe node alone (composed from the scenario by flyby.nodecli)."""
 
 import sys
 
 from flyby.nodecli import node_main
-from universe.node import main
 
-sys.exit(node_main("universe", lambda conf, sc, a: main(conf, sc, a.run_id, a.out, a.realtime)))
+sys.exit(node_main("universe"))

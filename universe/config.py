@@ -9,7 +9,8 @@ from typing import Literal
 
 from pydantic import Field, field_validator
 
-from flyby.model import Frozen
+from contracts.link import LinkConfig
+from contracts.model import Frozen
 
 Vec3 = tuple[float, float, float]
 
@@ -345,6 +346,7 @@ class UniverseConfig(Frozen):
     oscillator: OscillatorConfig = OscillatorConfig()
     faults: list[FaultConfig] = Field(default_factory=list, description="faults to inject")
     approach_history: ApproachHistoryConfig = ApproachHistoryConfig()
+    link: LinkConfig = Field(LinkConfig(), description="the true deep-space link: light time and data rates")
     save_frames_every: int = Field(
         1, ge=0, description="write every n-th camera frame as an 8-bit 512x512 PNG into the run folder (0: none)"
     )

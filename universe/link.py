@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from ground.config import LinkConfig
+from contracts.link import LinkConfig
 
 
 @dataclass

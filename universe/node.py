@@ -8,16 +8,16 @@ waits for the wall clock, for hardware in the loop.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
 import zenoh
 
-from flyby.bus import Keys
-from flyby.clock import Clock, WallClock
-from flyby.messages import GroundReply, StepReply
-from flyby.runtime import Attachment
-from flyby.scenario import Scenario
+from contracts.bus import BusConfig, Keys
+from contracts.clock import Clock, WallClock
+from contracts.messages import GroundReply, StepReply
+from contracts.runtime import Attachment
 from universe.camera import frame_to_png8, warm_up
 from universe.simulator import Universe
 
@@ -46,12 +46,12 @@ class FrameWriter:
         cv2.imwrite(str(self.folder / f"frame_{fid:05d}.png"), img)
 
 
-def run(bus: Attachment, sim: Universe, scenario: Scenario, realtime: bool, clock: Clock,
+def run(bus: Attachment, sim: Universe, bus_cfg: BusConfig, realtime: bool, clock: Clock,
         frames: FrameWriter | None = None) -> None:
     """Drive the simulation to its end over the bus."""
-    timeout = scenario.bus.reply_timeout_s
-    bus.wait_for_peers(["obsw", "ground"], scenario.bus.startup_timeout_s)
-    log.info("peers up; running %s from t=%.1f s to %.1f s", scenario.name, sim.t_s, scenario.universe.end_s)
+    timeout = bus_cfg.reply_timeout_s
+    bus.wait_for_peers(["obsw", "ground"], bus_cfg.startup_timeout_s)
+    log.info("peers up; running from t=%.1f s to %.1f s", sim.t_s, sim.cfg.end_s)
     wall0, sim0 = clock.now(), sim.t_s
     last_status = -1.0
     request, blob = sim.begin()
@@ -84,8 +84,13 @@ def run(bus: Attachment, sim: Universe, scenario: Scenario, realtime: bool, cloc
         bus.exchange(bus.keys.ground_step, gs, b"", GroundReply, "ground", timeout)
 
 
-def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, realtime: bool = False) -> int:
-    """Run the universe node until the scenario ends or a peer fails; return the process exit code."""
+def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, run_id: str, out: Path,
+         realtime: bool = False) -> int:
+    """Run the universe node until the scenario ends or a peer fails; return the process exit code.
+
+    ``build`` makes the simulator inside the node's failure handling, so a geometry it refuses is announced to
+    the other nodes like any error.
+    """
     keys = Keys(run_id)
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "universe", WallClock(), log)
@@ -96,14 +101,14 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, realtim
         made: list[Universe] = []
 
         def body() -> None:  # building the simulator is inside: a bad geometry is reported like any error
-            made.append(Universe(scenario))
+            made.append(build())
             wall = WallClock()
             t0 = wall.now()
             warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
             log.info("camera kernels ready in %.1f s", wall.now() - t0)
-            frames = FrameWriter(out / "frames", scenario.universe.save_frames_every,
-                                 scenario.universe.camera.bit_depth)
-            run(bus, made[0], scenario, realtime, WallClock(), frames)
+            cfg = made[0].cfg
+            frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
+            run(bus, made[0], bus_cfg, realtime, WallClock(), frames)
 
         try:
             code, finished = bus.guarded(body)
@@ -112,7 +117,7 @@ def main(conf: zenoh.Config, scenario: Scenario, run_id: str, out: Path, realtim
                 log.info("run complete at t=%.1f s (%d steps); %d undecodable messages", sim.t_s, sim.step,
                          bus.decode_errors)
                 bus.shutdown("run complete", failed=False)
-                bus.wait_until_gone(["obsw", "ground"], timeout_s=scenario.bus.reply_timeout_s * 6)
+                bus.wait_until_gone(["obsw", "ground"], timeout_s=bus_cfg.reply_timeout_s * 6)
             return code
         finally:
             bus.close()

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from flyby.scenario import Scenario
 from universe.camera import frame_to_png8
 from universe.dynamics import AttitudeState
 from universe.geometry import FlybyGeometry
@@ -105,9 +104,9 @@ class PerfectPointingCamera:
     Frames share the universe's seeded camera noise stream: the same scenario and times give the same frames.
     """
 
-    def __init__(self, scenario: Scenario) -> None:
-        self.universe = Universe(scenario)
-        self.camera = scenario.universe.camera
+    def __init__(self, universe: Universe) -> None:
+        self.universe = universe
+        self.camera = universe.cfg.camera
 
     def frame_at(self, t_s: float, exposure_s: float | None = None) -> RenderedFrame:
         """Render the frame centred on Dimorphos at true time ``t_s`` (mid-exposure), s."""
@@ -122,9 +121,9 @@ class PerfectPointingCamera:
         return RenderedFrame(t_s=float(t_s), pixels=pixels, dimorphos_px=dim, didymos_px=did)
 
 
-def perfect_pointing_frames(scenario: Scenario, times_s: np.ndarray) -> Iterator[RenderedFrame]:
-    """The frames at ``times_s`` (true time, s), in order, from one ``PerfectPointingCamera`` of the scenario."""
-    camera = PerfectPointingCamera(scenario)
+def perfect_pointing_frames(universe: Universe, times_s: np.ndarray) -> Iterator[RenderedFrame]:
+    """The frames at ``times_s`` (true time, s), in order, from one ``PerfectPointingCamera`` of a new universe."""
+    camera = PerfectPointingCamera(universe)
     for t in times_s:
         yield camera.frame_at(float(t))
 

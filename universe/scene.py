@@ -36,7 +36,7 @@ def scene_at(u: Universe, exposure_s: float) -> Scene:
     n = g.orbit_normal
     spin = Rotation.from_rotvec(n * (2.0 * math.pi * t / DIDYMOS_ROTATION_PERIOD_S))
     lock = Rotation.from_rotvec(n * float(g.mean_motion_rad_s * t))
-    seed = u.scenario.seed
+    seed = u.seed
     didymos = Body(centre_inertial_m=g.didymos_position_m(t), radius_m=bodies_cfg.didymos_diameter_m / 2.0,
                    shape=u.shapes[0], q_body_to_inertial=spin.as_quat())
     dimorphos = Body(centre_inertial_m=g.dimorphos_position_m(t), radius_m=bodies_cfg.dimorphos_diameter_m / 2.0,

@@ -12,8 +12,8 @@ from collections.abc import Iterator
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from flyby import pus
-from flyby.messages import (
+from contracts import pus
+from contracts.messages import (
     FrameMeta,
     GroundReply,
     GroundStep,
@@ -22,9 +22,8 @@ from flyby.messages import (
     StepRequest,
     TruthRecord,
 )
-from flyby.scenario import Scenario
-from flyby.seeding import rng_streams
-from universe.config import FaultConfig
+from contracts.seeding import rng_streams
+from universe.config import FaultConfig, UniverseConfig
 from universe.dynamics import AttitudeState, SpacecraftDynamics
 from universe.geometry import FlybyGeometry
 from universe.link import SpaceLink
@@ -96,16 +95,18 @@ class FaultBook:
 class Universe:
     """The whole truth of one run, advanced one control period at a time."""
 
-    def __init__(self, scenario: Scenario) -> None:
-        u = scenario.universe
-        self.scenario = scenario
+    def __init__(self, cfg: UniverseConfig, seed: int, *, apid: int, ground_period_s: float) -> None:
+        """``apid``: the spacecraft's APID (its approach telemetry); ``ground_period_s``: true s between ground steps."""
+        u = cfg
         self.cfg = u
-        self.rng = rng_streams(scenario.seed)
+        self.seed = seed
+        self.apid = apid
+        self.rng = rng_streams(seed)
         self.geometry = FlybyGeometry(u.flyby, u.bodies)
         self.dynamics = SpacecraftDynamics(u.spacecraft)
         self.sensors = Sensors(u.sensors, self.dynamics.n_wheels, self.rng["sensors"])
         self.oscillator = Oscillator(u.oscillator, self.rng["oscillator"], clock_jumps_s(u.faults))
-        self.link = SpaceLink(scenario.ground.link)
+        self.link = SpaceLink(u.link)
         self.faults = FaultBook(u.faults)
         self.dt_s = u.control_period_s
         self.n_steps = int(round((u.end_s - u.start_s) / self.dt_s))
@@ -115,17 +116,17 @@ class Universe:
         self.torque_nm = np.zeros(self.dynamics.n_wheels)
         self.frame_count = 0
         self.last_frame: np.ndarray | None = None
-        self.ground_period_s = scenario.ground.step_period_s
+        self.ground_period_s = ground_period_s
         self._next_ground_s = u.start_s
         self._ground_step = 0
         self._truth: list[TruthRecord] = []
         self._log: list[str] = []
         self._boresight = np.asarray(u.camera.boresight_body, dtype=float)
-        self._history = self._approach_history(scenario)
+        self._history = self._approach_history()
         self._obt_s = self.oscillator.obt_s(self.t_s)
-        self.shapes = body_shapes(scenario.seed)
+        self.shapes = body_shapes(seed)
 
-    def _approach_history(self, scenario: Scenario) -> list[tuple[float, bytes]]:
+    def _approach_history(self) -> list[tuple[float, bytes]]:
         """The service 9 time reports of the approach before the run, with the true time each reached ground.
 
         They stand for the telemetry of the days before the flyby (the OBSW of this run starts at ``start_s``), so
@@ -137,12 +138,12 @@ class Universe:
             return []
         n = int(h.duration_s // h.report_period_s)
         times = [self.t_s - (n - k) * h.report_period_s for k in range(n)]
-        link = scenario.ground.link
+        link = self.cfg.link
         out = []
         for k, t in enumerate(times):
             obt = self.oscillator.obt_s(t)
             seq = (k - n) % pus.SEQ_COUNT_MODULO
-            raw = pus.encode_tm(pus.TimeReport(obt_s=obt), scenario.obsw.apid, seq, obt, seq % 0x10000)
+            raw = pus.encode_tm(pus.TimeReport(obt_s=obt), self.apid, seq, obt, seq % 0x10000)
             out.append((t + len(raw) * 8.0 / link.downlink_rate_bps + link.one_way_light_time_s, raw))
         return out
 

@@ -4,18 +4,17 @@ from __future__ import annotations
 
 import pytest
 
-from flyby import pus
-from flyby.scenario import scenario_from_dict
-from obsw.software import FlightSoftware
-from universe.simulator import Universe
+from contracts import pus
+from scenario.model import scenario_from_dict
+from scenario import compose
 
 
 @pytest.mark.parametrize("delta_s", [-2.5, 0.75])
 def test_commanded_step_moves_obt_and_is_reported(delta_s: float) -> None:
     """OBT between the two periods around the command advances by the period plus delta; one ClockJumpEvent of delta."""
     sc = scenario_from_dict({"name": "x", "universe": {"start_s": -50.0, "end_s": -49.0}})
-    u = Universe(sc)
-    fsw = FlightSoftware(sc.obsw, sc.universe.spacecraft, sc.universe.camera)
+    u = compose.universe(sc)
+    fsw = compose.flight_software(sc)
     tc = pus.encode_tc(pus.AdjustObt(delta_s=delta_s), sc.obsw.apid, 3)
     req, _ = u.begin()
     req = req.model_copy(update={"uplink": (tc,)})

@@ -6,7 +6,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from spacepackets.ecss import PusTm
 
-from flyby import pus
+from contracts import pus
 
 px = st.floats(0, 2048, width=32)
 opt_pair = st.none() | st.tuples(px, px)

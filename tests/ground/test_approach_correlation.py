@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from flyby.cuc import TICK_S
-from flyby.scenario import load_run_inputs
-from ground.segment import GroundSegment
-from universe.simulator import Universe
+from contracts.cuc import TICK_S
+from scenario.model import load_run_inputs
+from scenario import compose
 
 SCENARIO = Path(__file__).parents[2] / "configs" / "scenarios" / "clock-drift.yaml"
 
@@ -15,8 +14,8 @@ SCENARIO = Path(__file__).parents[2] / "configs" / "scenarios" / "clock-drift.ya
 def test_correlation_over_the_approach_meets_its_bound() -> None:
     """20 ppm, 0.75 s offset, ten days of reports: OBT predicted at C/A within the worst-case bound of the fit."""
     sc, timeline = load_run_inputs(SCENARIO)
-    u = Universe(sc)
-    g = GroundSegment(sc, timeline)
+    u = compose.universe(sc)
+    g = compose.ground_segment(sc, timeline)
     u.begin()
     gs = u.ground_step()
     g.step(gs.utc_s, gs.downlink, gs.downlink_utc_s)

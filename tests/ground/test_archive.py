@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flyby.pus import (
+from contracts.pus import (
     FaultEvent,
     Housekeeping,
     Mode,
@@ -26,7 +26,7 @@ from flyby.pus import (
     split_packets,
 )
 from ground.archive import Archive, ArchiveError, parameters_of
-from ground.config import LinkConfig
+from contracts.link import LinkConfig
 
 APID = 0x0C1
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from flyby import pus
-from flyby.scenario import scenario_from_dict
-from ground.segment import GroundSegment
+from contracts import pus
+from scenario.model import scenario_from_dict
+from scenario import compose
 
 OFFSET_S, DRIFT = 1_000.0, 20e-6  # the true clock before the step: OBT = offset + (1 + drift) UTC
 
@@ -30,7 +30,7 @@ def time_reports(utc: range, step_s: float) -> list[tuple[pus.TmReport, float]]:
 @pytest.mark.parametrize("step_s", [5.0, -0.75])
 def test_reports_before_a_clock_step_are_moved_onto_the_new_time_scale(step_s: float) -> None:
     """20 reports, a step of the clock, 20 more: the fit is the stepped clock's line (offset + step, same drift)."""
-    seg = GroundSegment(scenario_from_dict({"name": "x"}))
+    seg = compose.ground_segment(scenario_from_dict({"name": "x"}))
     downlink(seg, time_reports(range(0, 200, 10), 0.0), 0.0, 0)
     _, _, log = downlink(seg, [(pus.ClockJumpEvent(step_s=step_s), 200.0)], step_s, 20)
     assert any("moved by the on-board time step" in line for line in log)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 import yaml
 
-from flyby import pus
-from flyby.scenario import scenario_from_dict
+from contracts import pus
+from scenario.model import scenario_from_dict
 from ground.operator import OperatorError, command_request, timeline_request, trajectory_request
-from ground.segment import GroundSegment
+from scenario import compose
 
 
 def _cmd(name: str, **args: object) -> bytes:
@@ -51,7 +51,7 @@ def test_schedule_requests() -> None:
 
 def test_trajectory_upload_uses_the_correlation() -> None:
     """A trajectory at C/A = 170 s UTC is uploaded at OBT = correlation(170 s)."""
-    seg = GroundSegment(scenario_from_dict({"name": "x"}))
+    seg = compose.ground_segment(scenario_from_dict({"name": "x"}))
     tc = trajectory_request(yaml.safe_dump({"ca_time_s": 170.0, "ca_distance_km": 54.0}).encode(), seg)
     assert tc.ca_obt_s == pytest.approx(seg.correlation.to_obt(170.0))
     assert tc.ca_distance_km == 54.0
@@ -61,7 +61,7 @@ def test_trajectory_upload_uses_the_correlation() -> None:
 
 def test_timeline_upload_refuses_late_commands() -> None:
     """A timeline with one command too late for the light time uploads the rest and says which was refused."""
-    seg = GroundSegment(scenario_from_dict({"name": "x"}))
+    seg = compose.ground_segment(scenario_from_dict({"name": "x"}))
     text = yaml.safe_dump({"commands": [
         {"time": "CA-300s", "command": "stop_imaging"},
         {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},

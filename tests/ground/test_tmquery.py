@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flyby import pus
+from contracts import pus
 from flyby.cli import main
 from ground.archive import Archive
 from ground.tmquery import TmQueryError, export_parameters_csv, parameter_counts, parameter_samples

@@ -28,7 +28,7 @@ def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subpro
 
 def start_nodes(out: Path, scenario: Path, realtime: bool = True) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
     """Start the three nodes as separate processes (as on three hosts); return them, their endpoints, the run id."""
-    from flyby.bus import free_tcp_port
+    from contracts.bus import free_tcp_port
 
     ports = {n: free_tcp_port() for n in ("universe", "obsw", "ground")}
     ep = {n: f"tcp/127.0.0.1:{p}" for n, p in ports.items()}

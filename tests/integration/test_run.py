@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from flyby import pus
-from flyby.bus import free_tcp_port
+from contracts import pus
+from contracts.bus import free_tcp_port
 from tests.integration.conftest import DATA, flyby
 
 pytestmark = pytest.mark.integration

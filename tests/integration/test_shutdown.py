@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from flyby.bus import Keys, session_config
+from contracts.bus import Keys, session_config
 from tests.integration.conftest import DATA, start_nodes, stop_nodes
 
 pytestmark = pytest.mark.integration

@@ -45,6 +45,7 @@ from universe.geometry import FlybyGeometry
 from universe.shapes import ShapeModel
 
 CFG = ImagingConfig()
+FOV_DEG = ObswConfig().camera.fov_deg
 
 
 def _sorted_stats(areas: np.ndarray, cc: np.ndarray, cr: np.ndarray, boxes: np.ndarray) -> np.ndarray:
@@ -83,13 +84,13 @@ def _assert_blobs_equal_reference(det: Detections, ref: ReferenceResult) -> None
 def test_binning_1024_equals_opencv_inter_area() -> None:
     """2x2 rounded-mean binning equals cv2.resize INTER_AREA pixel for pixel."""
     frame = np.random.default_rng(0).integers(0, 4096, (1024, 1024), dtype=np.uint16)
-    np.testing.assert_array_equal(binned(frame, CFG), reference_binned(frame, 512))
+    np.testing.assert_array_equal(binned(frame, CFG, 12), reference_binned(frame, 512))
 
 
 def test_binning_2048_is_the_rounded_block_mean() -> None:
     """4x4 binning is floor(mean + 1/2) of each block, and within 1 DN of cv2 INTER_AREA."""
     frame = np.random.default_rng(1).integers(0, 4096, (2048, 2048), dtype=np.uint16)
-    ours = binned(frame, CFG)
+    ours = binned(frame, CFG, 12)
     exact = np.floor(frame.reshape(512, 4, 512, 4).mean(axis=(1, 3)) + 0.5)
     np.testing.assert_array_equal(ours, exact)
     assert np.abs(ours.astype(np.int64) - reference_binned(frame, 512)).max() <= 1
@@ -100,7 +101,7 @@ def test_2048_frame_of_replicated_pixels_gives_the_1024_detections() -> None:
     bodies = _pair(500.0, 520.0, 40.0, (110.0, 40.0))
     small = synthetic_frame(np.random.default_rng(3), bodies=bodies)
     large = np.kron(small, np.ones((2, 2), dtype=np.uint16))
-    np.testing.assert_array_equal(binned(large, CFG), binned(small, CFG))
+    np.testing.assert_array_equal(binned(large, CFG, 12), binned(small, CFG, 12))
     assert process_frame(large, CFG) == process_frame(small, CFG)
 
 
@@ -109,8 +110,8 @@ def test_compression_equals_opencv_law(law: str) -> None:
     """The 8-bit table equals the OpenCV computation of the same law on every 12-bit value, and is monotonic."""
     cfg = ImagingConfig(compression_law=law)
     values = np.arange(4096, dtype=np.uint16).reshape(64, 64)
-    np.testing.assert_array_equal(compressed_8bit(values, cfg), reference_8bit(values, 12, law))
-    lut = compression_lut(cfg)
+    np.testing.assert_array_equal(compressed_8bit(values, cfg, 12), reference_8bit(values, 12, law))
+    lut = compression_lut(cfg, 12)
     assert lut[0] == 0 and lut[-1] == 255 and np.all(np.diff(lut.astype(int)) >= 0)
 
 
@@ -282,7 +283,7 @@ def test_offsets_follow_the_image_axes() -> None:
     det = process_frame(frame, CFG)
     assert det.didymos is not None and det.didymos_offset_px is not None and det.didymos_offset_rad is not None
     assert det.didymos_offset_px == pytest.approx((80.0, 30.0), abs=0.2)
-    f = focal_length_px(CFG.fov_deg, 512)
+    f = focal_length_px(FOV_DEG, 512)
     assert det.didymos_offset_rad == pytest.approx(
         (math.atan(det.didymos_offset_px[0] / f), math.atan(det.didymos_offset_px[1] / f))
     )
@@ -365,9 +366,9 @@ def test_stars_far_from_didymos_and_dim_or_elongated_blobs_are_not_dimorphos() -
 
 
 def test_default_config_is_reachable_from_obsw_config() -> None:
-    """ObswConfig carries the imaging defaults (paper: 512 px binned, 2.9 deg FOV, 12 bit)."""
-    cfg = ObswConfig().imaging
-    assert (cfg.binned_size_px, cfg.fov_deg, cfg.bit_depth) == (512, 2.9, 12)
+    """ObswConfig carries the imaging and camera-knowledge defaults (paper: 512 px binned, 2.9 deg FOV, 12 bit)."""
+    cfg = ObswConfig()
+    assert (cfg.imaging.binned_size_px, cfg.camera.fov_deg, cfg.camera.bit_depth) == (512, 2.9, 12)
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -443,7 +444,7 @@ def test_camera_nominal_flyby_finds_both_bodies_once_dimorphos_is_resolved() -> 
     run = _flyby_run(uc, np.arange(40.0, 166.0, 2.0), seed=21, jitter_rad=1e-3)
     resolved = [r for r in run if 2.0 * r[2]["dim_r"] >= MIN_DIMORPHOS_DIAMETER_PX]
     assert len(resolved) >= 40
-    ifov = math.radians(CFG.fov_deg) / 512
+    ifov = math.radians(FOV_DEG) / 512
     for det, ref, truth in run:
         _assert_blobs_equal_reference(det, ref)
     for det, _, truth in resolved:
@@ -451,7 +452,7 @@ def test_camera_nominal_flyby_finds_both_bodies_once_dimorphos_is_resolved() -> 
         assert math.dist(det.didymos.centroid_col_row, truth["did"]) <= max(0.5 * truth["did_r"], 1.5)
         assert math.dist(det.dimorphos.centroid_col_row, truth["dim"]) <= max(0.5 * truth["dim_r"], 1.5)
         assert det.dimorphos_offset_px is not None
-        los = los_body(*det.dimorphos_offset_px, CFG.fov_deg, 512)
+        los = los_body(*det.dimorphos_offset_px, FOV_DEG, 512)
         angle = math.acos(min(1.0, float(los @ truth["dim_los_body"])))
         assert angle <= max(0.5 * truth["dim_r"], 2.0) * ifov
 

@@ -8,15 +8,14 @@ import pytest
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
-from flyby import pus
-from flyby.messages import FrameMeta, SensorData, StepRequest
-from flyby.scenario import scenario_from_dict
+from contracts import pus
+from contracts.messages import FrameMeta, SensorData, StepRequest
+from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
 from obsw.software import FlightSoftware
 from obsw.tracking import TrackingLoop
 from obsw.trajectory import NominalTrajectory
 from timeline.parse import timeline_from_data
-from universe.config import CameraConfig, SpacecraftConfig
 from universe.geometry import FlybyGeometry
 
 APID = ObswConfig().apid
@@ -26,7 +25,7 @@ Q0 = (0.0, 0.0, 0.0, 1.0)
 
 
 def _fsw() -> FlightSoftware:
-    return FlightSoftware(ObswConfig(), SpacecraftConfig(), CameraConfig())
+    return FlightSoftware(ObswConfig())
 
 
 def _request(step: int, obt_s: float, uplink: tuple[bytes, ...] = (), q: tuple | None = Q0,
@@ -123,7 +122,7 @@ def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
 def test_wheel_saturation_is_reported_and_sends_the_spacecraft_to_safe() -> None:
     """A wheel at its momentum limit raises one saturation event naming it and a mode change to SAFE."""
     fsw = _fsw()
-    w = SpacecraftConfig().wheels
+    w = ObswConfig().wheels
     speed = 1.01 * w.max_momentum_nms / w.inertia_kgm2
     reply = fsw.step(_request(0, OBT0, wheels=(0.0, -speed, 0.0)), None)
     tm = _tm(reply.downlink)
@@ -171,7 +170,7 @@ def test_frame_line_of_sight_uses_the_attitude_at_exposure() -> None:
     reply = fsw.step(_request(1, OBT0 + DT, q=tuple(q_now.as_quat()), frame=meta), frame)
     nav = _of(_tm(reply.downlink), pus.NavigationReport)
     assert len(nav) == 1 and nav[0].dimorphos_col_row == pytest.approx((331.5, 221.5))
-    f_px = 256.0 / np.tan(np.radians(CameraConfig().fov_deg / 2))
+    f_px = 256.0 / np.tan(np.radians(ObswConfig().camera.fov_deg / 2))
     ray = np.array([331.5 - 255.5, 221.5 - 255.5, f_px])
     expected = q_exp.apply(ray / np.linalg.norm(ray))
     assert np.asarray(nav[0].los_inertial) == pytest.approx(expected, abs=1e-6)
@@ -188,8 +187,8 @@ SHORT_FLYBY = {
         # ground's nominal off by -4 s and +2 km: the camera must find the true C/A on board
         "uncertainty": {"ca_time_offset_sigma": -0.4, "ca_distance_offset_sigma": 0.4},
         "save_frames_every": 0,
+        "link": {"one_way_light_time_s": 1.0},
     },
-    "ground": {"link": {"one_way_light_time_s": 1.0}},
 }
 SHORT_TIMELINE = {
     "description": "acquisition at C/A-44 s, frames every 0.5 s",

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from obsw.config import TrackingConfig
+from obsw.config import ObswConfig, TrackingConfig
 from obsw.tracking import TrackingLoop, offset_rotvec, predicted_attitude
 from obsw.trajectory import NominalTrajectory
 
@@ -23,7 +23,7 @@ TRAJ = NominalTrajectory(
 CFG = TrackingConfig(natural_frequency_rad_s=0.3, damping=0.8)  # pinned: the closed forms below need zeta < 1
 WN, ZETA = CFG.natural_frequency_rad_s, CFG.damping
 WD = WN * np.sqrt(1 - ZETA**2)
-BORESIGHT = np.array(CFG.boresight_body)
+BORESIGHT = np.array(ObswConfig().camera.boresight_body)
 
 
 def _signed_angle(a: np.ndarray, b: np.ndarray, axis: np.ndarray) -> float:
@@ -218,8 +218,8 @@ def test_reset_forgets_the_correction() -> None:
 
 def test_predicted_attitude_honours_other_boresights() -> None:
     """With a boresight along body -X and the normal axis along body +Z the triad still maps them exactly."""
-    cfg = TrackingConfig(boresight_body=(-2.0, 0.0, 0.0), plane_normal_axis_body=(0.0, 0.0, 3.0))
-    r = predicted_attitude(TRAJ, 12.0, cfg)
+    cfg = TrackingConfig(plane_normal_axis_body=(0.0, 0.0, 3.0))
+    r = predicted_attitude(TRAJ, 12.0, cfg, boresight_body=(-2.0, 0.0, 0.0))
     assert np.allclose(r.apply([-1.0, 0.0, 0.0]), TRAJ.los_inertial(12.0), atol=1e-12)
     assert np.allclose(r.apply([0.0, 0.0, 1.0]), TRAJ.plane_normal, atol=1e-12)
 

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydantic import Field
 
-from flyby.model import Frozen
+from contracts.model import Frozen
 from timeline.model import (
     MODES,
     AfterPreviousTag,

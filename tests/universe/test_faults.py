@@ -13,11 +13,11 @@ import re
 import numpy as np
 import pytest
 
-from flyby.messages import FrameRequest, GroundReply, StepReply, StepRequest, TruthRecord
-from flyby.scenario import Scenario
+from contracts.messages import FrameRequest, GroundReply, StepReply, StepRequest, TruthRecord
+from scenario.model import Scenario
 from universe.camera import focal_length_px
 from universe.config import FaultConfig, SpacecraftConfig, UniverseConfig
-from universe.simulator import Universe
+from scenario import compose
 
 START_S, DT_S, STEPS = 100.0, 0.1, 30
 WINDOW_S = (101.05, 102.05)
@@ -31,10 +31,10 @@ def fault(kind: str, **kw: object) -> FaultConfig:
 
 def scenario(faults: list[FaultConfig], seed: int = 11, **universe: object) -> Scenario:
     """The test scenario: 3 s from t = 100 s with ``faults``; ``universe`` overrides other fields."""
-    fields: dict[str, object] = {"start_s": START_S, "end_s": START_S + STEPS * DT_S, "control_period_s": DT_S}
+    fields: dict[str, object] = {"start_s": START_S, "end_s": START_S + STEPS * DT_S, "control_period_s": DT_S,
+                                 "link": {"one_way_light_time_s": 0.3}}
     fields.update(universe)
-    return Scenario(name="faults", seed=seed, universe=UniverseConfig(faults=faults, **fields),
-                    ground={"link": {"one_way_light_time_s": 0.3}})
+    return Scenario(name="faults", seed=seed, universe=UniverseConfig(faults=faults, **fields))
 
 
 class Run:
@@ -42,7 +42,7 @@ class Run:
 
     def __init__(self, sc: Scenario, torque_nm: tuple[float, ...] = (0.0, 0.0, 0.0), frames_at: frozenset = frozenset(),
                  downlink: bool = False, uplink: bool = False) -> None:
-        u = Universe(sc)
+        u = compose.universe(sc)
         self.universe = u
         req, blob = u.begin()
         self.requests: list[StepRequest] = [req]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given
 from hypothesis import strategies as st
 
-from ground.config import LinkConfig
+from contracts.link import LinkConfig
 from universe.link import Pipe, SpaceLink
 
 

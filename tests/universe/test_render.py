@@ -13,7 +13,7 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from flyby.cli import main as flyby_main
-from flyby.scenario import Scenario
+from scenario.model import Scenario
 from universe.config import BodiesConfig, FlybyConfig, UniverseConfig
 from universe.geometry import FlybyGeometry
 from universe.render import (
@@ -24,6 +24,7 @@ from universe.render import (
     render_times_s,
 )
 from universe.simulator import pointing_attitude
+from scenario import compose
 
 unit_vectors = st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda v: 0.2 < math.dist(v, (0, 0, 0)))
 
@@ -108,8 +109,8 @@ def test_render_times_cover_the_window_inclusively() -> None:
 def test_frames_are_centred_on_dimorphos_and_deterministic() -> None:
     """A perfect-pointing frame has Dimorphos' true pixel at the principal point, and the same scenario repeats it."""
     scenario = Scenario(name="render", seed=4)
-    a = PerfectPointingCamera(scenario).frame_at(120.0)
-    b = PerfectPointingCamera(scenario).frame_at(120.0)
+    a = PerfectPointingCamera(compose.universe(scenario)).frame_at(120.0)
+    b = PerfectPointingCamera(compose.universe(scenario)).frame_at(120.0)
     c = (scenario.universe.camera.resolution_px - 1) / 2.0
     assert a.dimorphos_px == pytest.approx((c, c), abs=1e-6)
     assert a.pixels.dtype == np.uint16 and a.pixels.shape == (1024, 1024)

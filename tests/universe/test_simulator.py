@@ -12,13 +12,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from flyby.messages import FrameRequest, StepReply, StepRequest, TruthRecord
-from flyby.scenario import Scenario
+from contracts.messages import FrameRequest, StepReply, StepRequest, TruthRecord
+from scenario.model import Scenario
 from universe.camera import Body, render_frame
 from universe.config import CameraConfig, PlumeConfig, SpacecraftConfig, UniverseConfig
 from universe.scene import scene_at
 from universe.shapes import ShapeModel
-from universe.simulator import Universe, pointing_attitude
+from universe.simulator import pointing_attitude
+from scenario import compose
 
 F_1024 = 512.0 / math.tan(math.radians(2.9) / 2.0)  # closed-form focal length of the default camera, px
 C_1024 = 511.5  # principal point of a 1024 px frame
@@ -70,14 +71,14 @@ def mixed_replies(n: int) -> list[StepReply]:
 def test_same_seed_gives_identical_requests_frames_and_truth() -> None:
     """Two universes of the same scenario, fed the same replies, produce byte-identical requests, frames and truth."""
     sc = scenario(seed=5, start_s=140.0, end_s=141.2, sensors={"gyro": {"arw_deg_sqrt_h": 0.3}})
-    a = drive(Universe(sc), mixed_replies(12))
-    b = drive(Universe(sc), mixed_replies(12))
+    a = drive(compose.universe(sc), mixed_replies(12))
+    b = drive(compose.universe(sc), mixed_replies(12))
     assert len(a[0]) == 12 and sum(req.frame is not None for req, _ in a[0]) == 3
     assert [req for req, _ in a[0]] == [req for req, _ in b[0]]
     assert [blob for _, blob in a[0]] == [blob for _, blob in b[0]]
     assert a[1] == b[1] and a[2] == b[2]
     # a different seed changes the noise: the comparison above is sensitive to it
-    c = drive(Universe(scenario(seed=6, start_s=140.0, end_s=141.2)), mixed_replies(12))
+    c = drive(compose.universe(scenario(seed=6, start_s=140.0, end_s=141.2)), mixed_replies(12))
     assert [req.sensors for req, _ in c[0]] != [req.sensors for req, _ in a[0]]
 
 
@@ -88,7 +89,7 @@ def test_true_time_advances_one_period_per_step_and_stops_at_end(start_s, dt_s, 
     """Step k is at start + k dt with OBT = offset + t; the run ends after n steps at end_s; truth covers every step."""
     sc = Scenario(name="t", universe=UniverseConfig(start_s=start_s, end_s=start_s + n * dt_s, control_period_s=dt_s),
                   ground={"step_period_s": ground_period_s})
-    u = Universe(sc)
+    u = compose.universe(sc)
     offset = sc.universe.oscillator.initial_offset_s
     requests, truth, _ = drive(u, [reply(k) for k in range(n + 5)], drain=False)
     assert [req.step for req, _ in requests] == list(range(n))  # the reply to step n-1 ends the run
@@ -101,7 +102,7 @@ def test_true_time_advances_one_period_per_step_and_stops_at_end(start_s, dt_s, 
 def test_ground_steps_come_every_ground_period() -> None:
     """ground_due is true at the start and then every step_period_s of true time, never in between."""
     sc = Scenario(name="g", universe=UniverseConfig(start_s=0.0, end_s=5.0), ground={"step_period_s": 0.5})
-    u = Universe(sc)
+    u = compose.universe(sc)
     u.begin()
     due_at = []
     for k in range(50):
@@ -114,7 +115,7 @@ def test_ground_steps_come_every_ground_period() -> None:
 
 def test_zero_torque_zero_rate_keeps_the_attitude() -> None:
     """With no torque, no rate and wheels at rest, the attitude and rates stay exactly as they started (closed form)."""
-    u = Universe(scenario(start_s=0.0, end_s=20.0))
+    u = compose.universe(scenario(start_s=0.0, end_s=20.0))
     _, truth, _ = drive(u, [reply(k) for k in range(200)])
     q0 = np.asarray(truth[0].q)
     assert len(truth) == 201
@@ -127,7 +128,7 @@ def test_spin_about_a_principal_axis_turns_the_attitude_uniformly() -> None:
     """A free spin about principal body Z gives R(t) = R0 Rz(w t), the closed form of Euler's equations there."""
     rate_deg_s = 3.0
     sc = scenario(start_s=0.0, end_s=30.0, spacecraft=SpacecraftConfig(initial_rate_deg_s=(0.0, 0.0, rate_deg_s)))
-    _, truth, _ = drive(Universe(sc), [reply(k) for k in range(300)])
+    _, truth, _ = drive(compose.universe(sc), [reply(k) for k in range(300)])
     r0 = Rotation.from_quat(truth[0].q)
     for r in truth[::25]:
         expected = r0 * Rotation.from_rotvec([0.0, 0.0, math.radians(rate_deg_s) * r.t_s])
@@ -160,7 +161,7 @@ def frame_run(seed: int = 3) -> tuple[Universe, TruthRecord, np.ndarray]:
     one frame after 0.5 s; returns it (still at the frame's time), the frame's truth record and its pixels."""
     sc = scenario(seed=seed, start_s=150.0, end_s=152.0, plume=PlumeConfig(enabled=False),
                   spacecraft=SpacecraftConfig(initial_attitude_error_deg=0.2))
-    u = Universe(sc)
+    u = compose.universe(sc)
     requests, truth, _ = drive(u, [reply(k, frame=k == 4) for k in range(5)], drain=False)
     meta, blob = requests[5][0].frame, requests[5][1]
     assert meta is not None and meta.frame_id == 0

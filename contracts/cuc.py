@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 
-from flyby.errors import FlybyError
+from contracts.errors import FlybyError
 
 COARSE_OCTETS = 4
 FINE_OCTETS = 2

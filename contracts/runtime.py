@@ -18,10 +18,11 @@ from typing import Any
 
 import zenoh
 
-from flyby.bus import Keys
-from flyby.clock import Clock
-from flyby.errors import DecodeError, NodeFailure
-from flyby.messages import Message, Shutdown, Status, decode, encode
+from contracts.bus import Keys
+from contracts.clock import Clock
+from contracts.errors import DecodeError, NodeFailure
+from contracts.exitcodes import EXIT_INTERNAL, EXIT_OK, EXIT_PEER
+from contracts.messages import Message, Shutdown, Status, decode, encode
 
 
 @dataclass(frozen=True)
@@ -33,7 +34,6 @@ class Received:
     blob: bytes
 
 
-EXIT_OK, EXIT_INTERNAL, EXIT_PEER = 0, 1, 3  # process exit codes of a node (2 is an invalid scenario)
 DEPARTURE_GRACE_S = 1.0  # longest wait for the Shutdown of a run that ended normally, after a peer left
 
 

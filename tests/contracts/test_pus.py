@@ -13,8 +13,8 @@ from spacepackets.ecss.req_id import RequestId as SpRequestId
 from spacepackets.ecss.tc import PusTc
 from spacepackets.ecss.tm import PusTm
 
-from flyby.cuc import cuc_decode, cuc_encode
-from flyby.pus import (
+from contracts.cuc import cuc_decode, cuc_encode
+from contracts.pus import (
     HK_SIZE,
     HK_WHEEL_SLOTS,
     BadArgument,

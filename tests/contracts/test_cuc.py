@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from flyby.cuc import (
+from contracts.cuc import (
     CUC_LEN,
     MAX_COARSE,
     MAX_OBT_S,

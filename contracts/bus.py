@@ -11,6 +11,9 @@ import socket
 from collections.abc import Sequence
 
 import zenoh
+from pydantic import Field
+
+from contracts.model import Frozen
 
 NODES = ("universe", "obsw", "ground")
 
@@ -40,6 +43,14 @@ class Keys:
     def alive(self, node: str) -> str:
         """Liveliness token key of ``node``."""
         return f"{self.root}/alive/{node}"
+
+
+class BusConfig(Frozen):
+    """How the nodes find each other and how long they wait before declaring a peer dead."""
+
+    reply_timeout_s: float = Field(10.0, gt=0, description="longest wait for a peer's answer to a step, wall s")
+    startup_timeout_s: float = Field(30.0, gt=0, description="longest wait for all nodes to come up, wall s")
+    multicast_scouting: bool = Field(False, description="let Zenoh discover peers by multicast")
 
 
 def session_config(

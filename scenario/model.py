@@ -10,24 +10,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import yaml
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, model_validator
 
-from flyby.errors import ScenarioError
-from flyby.model import Frozen
+from contracts.bus import BusConfig
+from contracts.errors import ScenarioError
+from contracts.model import Frozen
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
+from scenario.knowledge import filled_paths, fill_knowledge, knowledge_problems
 from universe.config import UniverseConfig
 
 if TYPE_CHECKING:
     from timeline.model import Timeline
-
-
-class BusConfig(Frozen):
-    """How the nodes find each other and how long they wait before declaring a peer dead."""
-
-    reply_timeout_s: float = Field(10.0, gt=0, description="longest wait for a peer's answer to a step, wall s")
-    startup_timeout_s: float = Field(30.0, gt=0, description="longest wait for all nodes to come up, wall s")
-    multicast_scouting: bool = Field(False, description="let Zenoh discover peers by multicast")
 
 
 class Scenario(Frozen):
@@ -43,6 +37,23 @@ class Scenario(Frozen):
     obsw: ObswConfig = ObswConfig()
     ground: GroundConfig = GroundConfig()
     bus: BusConfig = BusConfig()
+    knowledge_errors: tuple[str, ...] = Field(
+        (),
+        description="knowing fields (obsw.*, ground.link.*) allowed to differ from the truth they know, as dotted "
+        "paths: a deliberate miscalibration; any other difference is refused (see scenario.knowledge)",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _knowledge_defaults_to_truth(cls, data: Any) -> Any:
+        return fill_knowledge(data) if isinstance(data, dict) else data
+
+    @model_validator(mode="after")
+    def _sections_agree(self) -> Scenario:
+        problems = knowledge_problems(self, set(self.knowledge_errors))
+        if problems:
+            raise ValueError("\n".join(problems))  # one line each, each opening with its path
+        return self
 
 
 def _message(err: dict[str, Any]) -> str:
@@ -69,7 +80,16 @@ def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        raise ScenarioError(source, [_message(e) for e in exc.errors()]) from None
+        lines = []
+        copied = filled_paths(data)
+        for e in exc.errors():
+            if ".".join(str(p) for p in e["loc"]) in copied:
+                continue  # a true value copied into on-board knowledge: its error is reported at the true path
+            if not e["loc"] and e["type"] == "value_error":  # cross-section rules: lines that name their paths
+                lines += _message(e).removeprefix("(file): ").split("\n")
+            else:
+                lines.append(_message(e))
+        raise ScenarioError(source, lines) from None
 
 
 def load_scenario(path: str | Path) -> Scenario:

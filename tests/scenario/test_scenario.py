@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from flyby.errors import ScenarioError
-from flyby.scenario import load_scenario, scenario_from_dict
+from contracts.errors import ScenarioError
+from scenario.model import load_scenario, scenario_from_dict
 
 
 def test_defaults_are_a_valid_scenario() -> None:

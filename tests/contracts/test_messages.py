@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from flyby.errors import DecodeError
-from flyby.messages import SensorData, StepReply, StepRequest, decode, encode
+from contracts.errors import DecodeError
+from contracts.messages import SensorData, StepReply, StepRequest, decode, encode
 
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 

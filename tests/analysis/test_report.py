@@ -16,14 +16,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
-from flyby import pus
-from flyby.messages import TruthRecord
-from flyby.scenario import Scenario
-from ground import plots
+from contracts import pus
+from contracts.messages import TruthRecord
+from scenario.model import Scenario
+from analysis import plots
 from ground.archive import Archive
 from ground.config import GroundConfig, ReportConfig
 from ground.node import TruthLog
-from ground.report import (
+from analysis.report import (
     ReportError,
     binned_px,
     build_report,
@@ -249,7 +249,7 @@ def test_pointing_and_centroid_failures(tmp_path: Path) -> None:
 
 
 def test_scenario_report_config_is_used(tmp_path: Path) -> None:
-    """write_report takes its thresholds from the scenario's ground.report."""
+    """write_report takes its thresholds from the scenario's analysis.report."""
     run = make_run(tmp_path / "wc", telemetry=False, frames=False, cfg=ReportConfig(in_view_required=0.9))
     write_report(run)
     figs = json.loads((run / "figures.json").read_text())

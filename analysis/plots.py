@@ -20,10 +20,10 @@ from matplotlib.figure import Figure  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 from PIL import Image, ImageDraw  # noqa: E402
 
-from flyby import pus  # noqa: E402
+from contracts import pus  # noqa: E402
 from ground.config import ReportConfig  # noqa: E402
 from obsw.recognition import measured_theta_rad  # noqa: E402
-from ground.report import (  # noqa: E402
+from analysis.report import (  # noqa: E402
     MODE_NAMES,
     ReportFigures,
     RunData,

@@ -29,12 +29,13 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field
 
-from flyby import pus
-from flyby.errors import FlybyError, ScenarioError
-from flyby.model import Frozen
-from flyby.scenario import Scenario, load_scenario
+from contracts import pus
+from contracts.errors import FlybyError, ScenarioError
+from contracts.exitcodes import EXIT_CONFIG
+from contracts.model import Frozen
+from scenario.model import Scenario, load_scenario
 from ground.config import ReportConfig
-from ground.segment import GroundSegment
+from scenario import compose
 from ground.tmquery import run_archive
 from obsw.recognition import TrajectoryRecognizer, measured_theta_rad
 from obsw.trajectory import NominalTrajectory
@@ -296,6 +297,16 @@ class ReportFigures(Frozen):
     rate_pass: bool | None
     centroid_pass: bool | None
 
+    def summary_lines(self) -> list[str]:
+        """The figures as the run's summary prints them (the same numbers as figures.json and the report)."""
+        def f(x: float | None, fmt: str) -> str:
+            return "-" if x is None else format(x, fmt)
+
+        in_view = None if self.in_view_fraction is None else 100 * self.in_view_fraction
+        return [f"target in field of view: {f(in_view, '.1f')}% of {self.in_view_basis}; max pointing error "
+                f"{f(self.max_pointing_error_deg, '.3f')} deg; peak body rate {f(self.peak_rate_deg_s, '.2f')} deg/s; "
+                f"worst centroid {f(self.max_centroid_error_px, '.2f')} px"]
+
     @property
     def all_pass(self) -> bool:
         """Every requirement was assessed and passed."""
@@ -315,7 +326,7 @@ def true_ca_obt_s(scenario: Scenario, truth: Truth | None) -> tuple[float, str]:
 
 def uploaded_nominal(scenario: Scenario) -> NominalTrajectory:
     """The nominal trajectory ground uploads at the start of the run (a-priori OBT-UTC correlation)."""
-    tc = GroundSegment(scenario).nominal_trajectory_tc()
+    tc = compose.ground_segment(scenario).nominal_trajectory_tc()
     return NominalTrajectory(
         ca_time_obt_s=tc.ca_obt_s, ca_distance_km=tc.ca_distance_km, speed_km_s=tc.speed_km_s,
         approach_direction=tc.approach_direction, ca_direction=tc.ca_direction,
@@ -625,14 +636,14 @@ def write_report(run_dir: Path, cfg: ReportConfig | None = None) -> Path:
     """Write run_dir/report.html (self-contained), its images under run_dir/report/, report/flyby.gif and
     run_dir/figures.json; return the path of report.html.
 
-    ``cfg`` defaults to the scenario's ``ground.report``. Raises ReportError if the folder has no usable scenario.
+    ``cfg`` defaults to the scenario's ``analysis.report``. Raises ReportError if the folder has no usable scenario.
     """
     return build_report(Path(run_dir), cfg)[0]
 
 
 def build_report(run_dir: Path, cfg: ReportConfig | None = None) -> tuple[Path, ReportFigures]:
     """``write_report`` that also returns the figures."""
-    from ground import plots  # matplotlib loads only when a report is drawn
+    from analysis import plots  # matplotlib loads only when a report is drawn
 
     data = load_run(run_dir)
     cfg = cfg or data.scenario.ground.report
@@ -659,7 +670,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         path, figs = build_report(args.run_dir)
     except ReportError as err:
         print(f"flyby report: {err}", file=sys.stderr)
-        return 2
+        return EXIT_CONFIG
     verdict = "all requirements PASS" if figs.all_pass else "some requirement FAILS or was not assessed"
     print(f"{path}: {verdict}")
     return 0

@@ -12,8 +12,8 @@ from typing import Literal, TypeVar
 
 from pydantic import ConfigDict, Field, ValidationError
 
-from flyby.errors import DecodeError
-from flyby.model import Frozen
+from contracts.errors import DecodeError
+from contracts.model import Frozen
 
 BUS_VERSION = 1
 _HEADER = struct.Struct(">I")

@@ -1,7 +1,7 @@
 """The mission's packets: PUS-C telecommands and telemetry on CCSDS space packets, built with spacepackets.
 
 Every packet is a CCSDS space packet (unsegmented, secondary header present) with a PUS-C secondary header and a
-CRC-16/CCITT (ibm-3740) trailer. Telemetry is stamped with OBT as a 7-octet CUC (``flyby.cuc``: P-field 0x2E,
+CRC-16/CCITT (ibm-3740) trailer. Telemetry is stamped with OBT as a 7-octet CUC (``contracts.cuc``: P-field 0x2E,
 4 coarse + 2 fine octets), so a TM header is 6 + 7 + 7 = 20 octets. All fields are big-endian.
 
 Services (TC = ground to spacecraft, TM = spacecraft to ground):
@@ -63,9 +63,9 @@ from pydantic import AfterValidator, BeforeValidator, Field, ValidationError, fi
 from spacepackets.ecss.tc import InvalidTcCrc16Error, PusTc
 from spacepackets.ecss.tm import InvalidTmCrc16Error, PusTm
 
-from flyby.cuc import CUC_LEN, MAX_OBT_S, CucError, cuc_decode, cuc_encode
-from flyby.errors import FlybyError
-from flyby.model import Frozen
+from contracts.cuc import CUC_LEN, MAX_OBT_S, CucError, cuc_decode, cuc_encode
+from contracts.errors import FlybyError
+from contracts.model import Frozen
 
 PRIMARY_HEADER_LEN = 6
 TC_SECONDARY_HEADER_LEN = 5

@@ -1,0 +1,50 @@
+"""The composition of a run: the three cores built from a scenario, each from its own section only.
+
+The flight software gets ``obsw`` (what is on board), the universe ``universe`` (the truth) and the seed, the
+ground ``ground`` and what it believes of the flyby. The nodes and the in-process runner build their cores
+here, so a node started alone on another host composes exactly what ``flyby run`` composes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from contracts.seeding import rng_streams
+from ground.config import FlybyBelief
+from ground.segment import GroundSegment
+from obsw.software import FlightSoftware
+from scenario.model import Scenario
+from timeline.model import Timeline
+from universe.geometry import nominal_ca
+from universe.simulator import Universe
+
+
+def flight_software(scenario: Scenario) -> FlightSoftware:
+    """The on-board software, configured with on-board knowledge only."""
+    return FlightSoftware(scenario.obsw)
+
+
+def universe(scenario: Scenario) -> Universe:
+    """The universe simulator: the truth of the run, seeded."""
+    return Universe(scenario.universe, scenario.seed, apid=scenario.obsw.apid,
+                    ground_period_s=scenario.ground.step_period_s)
+
+
+def ground_belief(scenario: Scenario) -> FlybyBelief:
+    """What ground believes of the flyby: the true trajectory plus the knowledge error drawn with the seed."""
+    u = scenario.universe
+    f, unc = u.flyby, u.uncertainty
+    ca_utc_s, ca_km = nominal_ca(f, unc, rng_streams(scenario.seed)["nominal"])
+    e_v = np.asarray(f.approach_direction, dtype=float)
+    e_v /= np.linalg.norm(e_v)
+    e_ca = np.asarray(f.ca_direction, dtype=float)
+    e_ca = e_ca - (e_ca @ e_v) * e_v
+    e_ca /= np.linalg.norm(e_ca)
+    return FlybyBelief(ca_utc_s=ca_utc_s, ca_distance_km=ca_km, speed_km_s=f.speed_km_s,
+                       approach_direction=tuple(float(c) for c in e_v), ca_direction=tuple(float(c) for c in e_ca),
+                       ca_time_sigma_s=unc.ca_time_sigma_s, ca_distance_sigma_km=unc.ca_distance_sigma_km)
+
+
+def ground_segment(scenario: Scenario, timeline: Timeline | None = None) -> GroundSegment:
+    """The ground segment with its belief of the flyby and the timeline it uploads."""
+    return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline)
