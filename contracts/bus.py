@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import zenoh
 from pydantic import Field
 
-from contracts.model import Frozen
+from contracts.model import Config
 
 NODES = ("universe", "obsw", "ground")
 
@@ -45,7 +45,7 @@ class Keys:
         return f"{self.root}/alive/{node}"
 
 
-class BusConfig(Frozen):
+class BusConfig(Config):
     """How the nodes find each other and how long they wait before declaring a peer dead."""
 
     reply_timeout_s: float = Field(10.0, gt=0, description="longest wait for a peer's answer to a step, wall s")

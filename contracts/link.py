@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from contracts.model import Frozen
+from contracts.model import Config
 
 
-class LinkConfig(Frozen):
+class LinkConfig(Config):
     """Deep-space link between ground and spacecraft (about 33 s one way at 10 million km)."""
 
     one_way_light_time_s: float = Field(33.4, ge=0, description="one-way light time, s (10 million km / c)")

@@ -9,19 +9,23 @@ from pathlib import Path
 
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
-from scenario.model import Scenario, load_run_inputs
+from scenario.model import Scenario, load_run_inputs, timeline_checks
 
 
 
 def _load_or_report(path: Path) -> Scenario | None:
-    """Load a scenario, or print every problem with its path in the file and return None."""
+    """Load a scenario, or print every problem with its path in the file and return None; print its warnings."""
     try:
-        return load_run_inputs(path)[0]
+        scenario, timeline = load_run_inputs(path)
     except ScenarioError as err:
         print(f"{err.source}: invalid scenario ({len(err.problems)} problem(s))", file=sys.stderr)
         for line in err.problems:
             print(f"  {line}", file=sys.stderr)
         return None
+    if timeline is not None:
+        for line in timeline_checks(scenario, timeline)[1]:
+            print(f"{path}: warning: ground.timeline_file ({scenario.ground.timeline_file}): {line}", file=sys.stderr)
+    return scenario
 
 
 def cmd_validate(args: argparse.Namespace) -> int:

@@ -5,10 +5,10 @@ from __future__ import annotations
 from pydantic import Field
 
 from contracts.link import LinkConfig
-from contracts.model import Frozen
+from contracts.model import Config
 
 
-class ReportConfig(Frozen):
+class ReportConfig(Config):
     """The flyby report: the paper's requirement thresholds (each with its source) and how much imagery it shows."""
 
     in_view_required: float = Field(
@@ -59,7 +59,7 @@ class ReportConfig(Frozen):
 Vec3 = tuple[float, float, float]
 
 
-class FlybyBelief(Frozen):
+class FlybyBelief(Config):
     """What ground believes of the flyby before the pass (its navigation's nominal trajectory and uncertainty).
 
     In a scenario it is the truth plus a knowledge error drawn with the seed (``universe.uncertainty``); the
@@ -75,7 +75,7 @@ class FlybyBelief(Frozen):
     ca_distance_sigma_km: float = Field(ge=0, description="one-sigma uncertainty of the C/A distance, km")
 
 
-class GroundConfig(Frozen):
+class GroundConfig(Config):
     """What the ground segment does during a run."""
 
     step_period_s: float = Field(1.0, gt=0, description="how often ground exchanges with the link, s of UTC")

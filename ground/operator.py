@@ -8,11 +8,11 @@ from __future__ import annotations
 
 from typing import Any
 
-import yaml
 from pydantic import Field, ValidationError
 
 from contracts import pus
 from contracts.errors import FlybyError
+from contracts.textfile import TextFileError, decode_text, load_yaml
 from contracts.model import Frozen
 from ground.segment import GroundSegment
 from ground.uplink import UplinkError, telecommand_of
@@ -37,9 +37,9 @@ class TrajectoryUpload(Frozen):
 
 def _yaml(payload: bytes, what: str) -> Any:
     try:
-        return yaml.safe_load(payload.decode("utf-8"))
-    except (UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise OperatorError(f"{what}: not valid YAML: {exc}") from None
+        return load_yaml(decode_text(payload))
+    except TextFileError as exc:
+        raise OperatorError(f"{what}: {exc}") from None
 
 
 def _request_ids(args: dict[str, Any], apid: int, required: bool) -> tuple[pus.RequestId, ...] | None:

@@ -6,10 +6,11 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from contracts.model import Frozen
+from contracts.checks import inertia_problem
+from contracts.model import Config
 
 
-class ControlConfig(Frozen):
+class ControlConfig(Config):
     """PD attitude control on quaternion error and body rate (paper: PD baseline, no integral term)."""
 
     # Worst case (paper: one gain set, tuned on the nearest C/A): 40 km at 7 km/s, peak LOS rate v/d = 0.175 rad/s
@@ -31,7 +32,7 @@ class ControlConfig(Frozen):
     feedforward: bool = Field(True, description="add the reference angular acceleration times inertia")
 
 
-class RecognitionConfig(Frozen):
+class RecognitionConfig(Config):
     """Trajectory recognition: the candidate grid of (C/A time, C/A distance) and the continuous estimate beside it."""
 
     grid_span_sigma: float = Field(
@@ -70,7 +71,7 @@ class RecognitionConfig(Frozen):
         return v
 
 
-class TrackingConfig(Frozen):
+class TrackingConfig(Config):
     """Second-order (type-2) tracking loop on the image feedback (paper: 'Tracking and Trajectory Recognition')."""
 
     natural_frequency_rad_s: float = Field(
@@ -119,7 +120,7 @@ class TrackingConfig(Frozen):
     )
 
 
-class ModesConfig(Frozen):
+class ModesConfig(Config):
     """Mode manager thresholds (paper: acquisition from C/A-240 s, autonomous from C/A-30 s)."""
 
     acquisition_before_ca_s: float = Field(240.0, gt=0, description="enter ACQUISITION this long before C/A, s")
@@ -128,7 +129,7 @@ class ModesConfig(Frozen):
     target_lost_timeout_s: float = Field(10.0, gt=0, description="declare the target lost after this long unseen, s")
 
 
-class ImagingConfig(Frozen):
+class ImagingConfig(Config):
     """Imaging subsystem: binning, 12->8 bit compression, binarisation, labelling and target identification.
 
     Pixel quantities are at the binned (512x512) scale; brightness is in 8-bit compressed DN.
@@ -249,7 +250,7 @@ class ImagingConfig(Frozen):
     )
 
 
-class CameraKnowledge(Frozen):
+class CameraKnowledge(Config):
     """What the flight software knows of its camera (the true camera is ``universe.camera``; by default the same)."""
 
     fov_deg: float = Field(2.9, gt=0, lt=90, description="horizontal field of view, deg (paper)")
@@ -268,8 +269,15 @@ class CameraKnowledge(Frozen):
             raise ValueError("must be a non-zero vector")
         return v
 
+    @model_validator(mode="after")
+    def _exposure_fits_the_period(self) -> CameraKnowledge:
+        if self.exposure_s >= self.frame_period_s:
+            raise ValueError(f"exposure_s: {self.exposure_s:g} s must be shorter than frame_period_s "
+                             f"{self.frame_period_s:g} s")
+        return self
 
-class WheelKnowledge(Frozen):
+
+class WheelKnowledge(Config):
     """What the flight software knows of its reaction wheels (truth: ``universe.spacecraft.wheels``)."""
 
     layout: Literal["orthogonal", "pyramid"] = Field("orthogonal", description="three orthogonal or four in a pyramid")
@@ -281,7 +289,7 @@ class WheelKnowledge(Frozen):
     )
 
 
-class ObswConfig(Frozen):
+class ObswConfig(Config):
     """Everything the on-board software is configured with before the flyby."""
 
     housekeeping_period_s: float = Field(1.0, gt=0, description="PUS service 3 housekeeping period, OBT s")
@@ -315,6 +323,14 @@ class ObswConfig(Frozen):
     recognition: RecognitionConfig = RecognitionConfig()
     tracking: TrackingConfig = TrackingConfig()
     imaging: ImagingConfig = ImagingConfig()
+
+    @field_validator("inertia_kgm2")
+    @classmethod
+    def _rigid_body(cls, v: tuple[tuple[float, float, float], ...]) -> tuple[tuple[float, float, float], ...]:
+        problem = inertia_problem(v)
+        if problem:
+            raise ValueError(problem)
+        return v
 
     @model_validator(mode="after")
     def _orthogonal_axes(self) -> ObswConfig:

@@ -6,25 +6,27 @@ Loading turns every problem into a line that names its path in the file
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-from pydantic import Field, ValidationError, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from contracts.bus import BusConfig
 from contracts.errors import ScenarioError
-from contracts.model import Frozen
+from contracts.model import Config
+from contracts.textfile import TextFileError, load_yaml, read_text
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
-from scenario.knowledge import filled_paths, fill_knowledge, knowledge_problems
+from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
+from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
 
 if TYPE_CHECKING:
     from timeline.model import Timeline
 
 
-class Scenario(Frozen):
+class Scenario(Config):
     """The root of a scenario file."""
 
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$", description="short name, used in run folders")
@@ -48,17 +50,38 @@ class Scenario(Frozen):
     def _knowledge_defaults_to_truth(cls, data: Any) -> Any:
         return fill_knowledge(data) if isinstance(data, dict) else data
 
+    @field_validator("epoch_utc")
+    @classmethod
+    def _epoch_readable(cls, v: str) -> str:
+        try:
+            epoch_datetime(v)
+        except ValueError as exc:
+            raise ValueError(str(exc).removeprefix("epoch_utc: ")) from None
+        return v
+
     @model_validator(mode="after")
     def _sections_agree(self) -> Scenario:
         problems = knowledge_problems(self, set(self.knowledge_errors))
+        u, upload = self.universe, self.ground.upload_nominal_at_s
+        if upload is not None and not u.start_s - 1e-9 <= upload < u.end_s:
+            problems.append(f"ground.upload_nominal_at_s: {upload:g} s is outside the run {u.start_s:g}..{u.end_s:g} s: "
+                            "the nominal trajectory would never be uploaded")
         if problems:
             raise ValueError("\n".join(problems))  # one line each, each opening with its path
         return self
 
 
+def field_path(loc: tuple[int | str, ...]) -> str:
+    """A pydantic error location as the scenario file names it: ``universe.faults[2].wheel``."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
 def _message(err: dict[str, Any]) -> str:
     """Turn one pydantic error into 'path: message'."""
-    loc = ".".join(str(p) for p in err["loc"]) or "(file)"
+    loc = field_path(err["loc"]) or "(file)"
     msg = err["msg"]
     if err["type"] == "extra_forbidden":
         msg = "unknown field"
@@ -66,11 +89,35 @@ def _message(err: dict[str, Any]) -> str:
         op = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
         bound = next(iter(err["ctx"].values()))
         msg = f"must be {op[err['type']]} {bound:g}" if isinstance(bound, float) else f"must be {op[err['type']]} {bound}"
+    elif err["type"] in ("float_type", "int_type"):
+        kind = "a whole number" if err["type"] == "int_type" else "a number"
+        msg = f"must be {kind}, got {err['input']!r} ({type(err['input']).__name__})"
+    elif err["type"] == "finite_number":
+        msg = f"must be a finite number, got {err['input']!r}"
     elif err["type"] == "string_pattern_mismatch":
         msg = f"must match {err['ctx']['pattern']} (letters, digits, '.', '_', '-'), got {err['input']!r}"
     elif msg.startswith("Value error, "):
         msg = msg[len("Value error, ") :]
     return f"{loc}: {msg}"
+
+
+_RELATIVE_PATH = re.compile(r"^[A-Za-z_][\w.\[\]]*: ")
+
+
+def _lines(err: dict[str, Any]) -> list[str]:
+    """'path: message' lines of one pydantic error; a rule across fields (a model validator) raises lines that open
+    with their path inside the model, which is joined to the model's own path."""
+    if err["type"] != "value_error":
+        return [_message(err)]
+    base = field_path(err["loc"])
+    text = _message(err).split(": ", 1)[1] if base else _message(err).removeprefix("(file): ")
+    out = []
+    for line in text.split("\n"):
+        if _RELATIVE_PATH.match(line):
+            out.append(f"{base}.{line}" if base else line)
+        else:
+            out.append(f"{base or '(file)'}: {line}")
+    return out
 
 
 def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
@@ -80,15 +127,9 @@ def scenario_from_dict(data: Any, source: str = "<scenario>") -> Scenario:
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
-        lines = []
         copied = filled_paths(data)
-        for e in exc.errors():
-            if ".".join(str(p) for p in e["loc"]) in copied:
-                continue  # a true value copied into on-board knowledge: its error is reported at the true path
-            if not e["loc"] and e["type"] == "value_error":  # cross-section rules: lines that name their paths
-                lines += _message(e).removeprefix("(file): ").split("\n")
-            else:
-                lines.append(_message(e))
+        lines = [line for e in exc.errors() for line in _lines(e)
+                 if line.split(": ", 1)[0] not in copied]  # a true value copied into knowledge: reported at the truth
         raise ScenarioError(source, lines) from None
 
 
@@ -96,15 +137,9 @@ def load_scenario(path: str | Path) -> Scenario:
     """Read and validate a scenario file."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScenarioError(str(p), [f"(file): cannot read: {exc.strerror}"]) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "(file)"
-        raise ScenarioError(str(p), [f"{where}: not valid YAML: {getattr(exc, 'problem', exc)}"]) from None
+        data = load_yaml(read_text(p))
+    except TextFileError as exc:
+        raise ScenarioError(str(p), [str(exc)]) from None
     return scenario_from_dict(data, str(p))
 
 
@@ -124,9 +159,60 @@ def scenario_timeline(scenario: Scenario, scenario_path: str | Path) -> Timeline
     if not path.is_absolute():
         path = Path(scenario_path).parent / path
     try:
-        return load_timeline(path)
+        timeline = load_timeline(path)
     except TimelineError as err:
         raise ScenarioError(str(scenario_path), [f"ground.timeline_file ({name}): {p}" for p in err.problems]) from None
+    errors, _ = timeline_checks(scenario, timeline)
+    if errors:
+        raise ScenarioError(str(scenario_path), [f"ground.timeline_file ({name}): {p}" for p in errors])
+    return timeline
+
+
+def timeline_checks(scenario: Scenario, timeline: Timeline) -> tuple[list[str], list[str]]:
+    """(errors, warnings) of a timeline against the run, one 'row N: ...' line each.
+
+    Error: a row repeating an earlier one (same tag, command and arguments: it would run twice). Warning: a row
+    whose tag falls after the run's end (it is never released) or before the timeline can reach the spacecraft
+    (ground refuses it at upload). Tags are placed on the truth's C/A and the a-priori OBT offset, so a warning is
+    approximate by ground's knowledge error; ``flyby ground --dry-run`` places them as ground will.
+    """
+    from timeline.convert import utc_seconds
+    from timeline.model import AfterPreviousTag, CaTag, ObtTag, UtcTag
+
+    u, g = scenario.universe, scenario.ground
+    upload = g.upload_nominal_at_s if g.upload_nominal_at_s is not None else u.start_s
+    reach = upload + g.link.one_way_light_time_s + g.upload_margin_s
+    errors: list[str] = []
+    warnings: list[str] = []
+    seen: dict[str, int] = {}
+    t_prev: float | None = None
+    for row, entry in enumerate(timeline.entries, start=1):
+        key = entry.model_dump_json()
+        if key in seen:
+            errors.append(f"row {row}: repeats row {seen[key]} (same time, command and arguments: it would run twice)")
+        seen.setdefault(key, row)
+        tag = entry.tag
+        if isinstance(tag, UtcTag):
+            t = utc_seconds(tag.utc, scenario.epoch_utc)
+        elif isinstance(tag, CaTag):
+            t = u.flyby.ca_time_s + tag.ca_offset_s
+        elif isinstance(tag, ObtTag):
+            t = tag.obt_s - g.a_priori_obt_offset_s
+        elif isinstance(tag, AfterPreviousTag) and t_prev is not None:
+            t = t_prev + tag.delay_s
+        else:
+            t = None
+        t_prev = t
+        if t is None:
+            continue
+        if t >= u.end_s:
+            warnings.append(f"row {row} ({entry.command.name}): due at t = {t:.1f} s, after the run ends at "
+                            f"{u.end_s:g} s: it will never be released")
+        elif t < reach:
+            warnings.append(f"row {row} ({entry.command.name}): due at t = {t:.1f} s, before the timeline can reach "
+                            f"the spacecraft (upload at {upload:g} s + light time + margin = {reach:.1f} s): "
+                            "ground will refuse it")
+    return errors, warnings
 
 
 def load_run_inputs(path: str | Path) -> tuple[Scenario, Timeline | None]:

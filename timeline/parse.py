@@ -30,6 +30,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
+from contracts.textfile import TextFileError, load_yaml, read_text
 from timeline.model import (
     AfterPreviousTag,
     CaTag,
@@ -203,11 +204,9 @@ def timeline_from_data(data: Any, source: str = "<timeline>", registry: CommandR
 def timeline_from_yaml_text(text: str, source: str = "<timeline>", registry: CommandRegistry | None = None) -> Timeline:
     """Parse and validate a YAML timeline."""
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "(file)"
-        raise TimelineError(source, [f"{where}: not valid YAML: {getattr(exc, 'problem', exc)}"]) from None
+        data = load_yaml(text)
+    except TextFileError as exc:
+        raise TimelineError(source, [str(exc)]) from None
     return timeline_from_data(data, source, registry)
 
 
@@ -278,9 +277,9 @@ def load_timeline(path: str | Path, registry: CommandRegistry | None = None) -> 
     if suffix not in (".yaml", ".yml", ".csv"):
         raise TimelineError(str(p), [f"(file): unknown timeline format '{suffix}', expected .yaml, .yml or .csv"])
     try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise TimelineError(str(p), [f"(file): cannot read: {exc.strerror}"]) from None
+        text = read_text(p)
+    except TextFileError as exc:
+        raise TimelineError(str(p), [str(exc)]) from None
     if suffix == ".csv":
         return timeline_from_csv_text(text, str(p), registry)
     return timeline_from_yaml_text(text, str(p), registry)

@@ -7,15 +7,16 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
+from contracts.checks import inertia_problem, parallel_problem
 from contracts.link import LinkConfig
-from contracts.model import Frozen
+from contracts.model import Config
 
 Vec3 = tuple[float, float, float]
 
 
-class FlybyConfig(Frozen):
+class FlybyConfig(Config):
     """True flyby geometry: straight-line relative motion about the Didymos barycentre."""
 
     ca_time_s: float = Field(
@@ -42,8 +43,16 @@ class FlybyConfig(Frozen):
             raise ValueError("must be a non-zero vector")
         return v
 
+    @model_validator(mode="after")
+    def _not_parallel(self) -> FlybyConfig:
+        # the C/A direction is made orthogonal to the velocity: parallel vectors leave nothing to normalise
+        problem = parallel_problem(self.ca_direction, self.approach_direction, "approach_direction")
+        if problem:
+            raise ValueError(f"ca_direction: {problem}")
+        return self
 
-class UncertaintyConfig(Frozen):
+
+class UncertaintyConfig(Config):
     """One-sigma knowledge errors of the trajectory that ground believes (drawn with the seed)."""
 
     ca_time_sigma_s: float = Field(10.0, ge=0, description="one-sigma error of the C/A time, s")
@@ -58,7 +67,7 @@ class UncertaintyConfig(Frozen):
     )
 
 
-class BodiesConfig(Frozen):
+class BodiesConfig(Config):
     """Didymos and Dimorphos (paper: 780 m and 164 m; Dimorphos orbit 1.19 km, 11.92 h)."""
 
     didymos_diameter_m: float = Field(780.0, gt=0, description="mean diameter of Didymos, m (paper)")
@@ -91,7 +100,7 @@ class BodiesConfig(Frozen):
         return v
 
 
-class WheelConfig(Frozen):
+class WheelConfig(Config):
     """Reaction wheels (paper: 0.007 Nm, 0.1 Nms)."""
 
     layout: Literal["orthogonal", "pyramid"] = Field("orthogonal", description="three orthogonal or four in a pyramid")
@@ -113,7 +122,7 @@ class WheelConfig(Frozen):
     )
 
 
-class SpacecraftConfig(Frozen):
+class SpacecraftConfig(Config):
     """Rigid 6U CubeSat (paper: about 14 kg)."""
 
     mass_kg: float = Field(14.0, gt=0, description="mass, kg (paper)")
@@ -134,8 +143,16 @@ class SpacecraftConfig(Frozen):
         "below 1e-9 over a 600 s flyby at CubeSat rates; brief of the dynamics module)",
     )
 
+    @field_validator("inertia_kgm2")
+    @classmethod
+    def _rigid_body(cls, v: tuple[Vec3, Vec3, Vec3]) -> tuple[Vec3, Vec3, Vec3]:
+        problem = inertia_problem(v)
+        if problem:
+            raise ValueError(problem)
+        return v
 
-class StarTrackerConfig(Frozen):
+
+class StarTrackerConfig(Config):
     """Star tracker (defaults: a CubeSat-class unit such as the Blue Canyon NST)."""
 
     noise_arcsec: Vec3 = Field((6.0, 6.0, 40.0), description="one-sigma white noise per body axis, arcsec")
@@ -143,7 +160,7 @@ class StarTrackerConfig(Frozen):
     rate_hz: float = Field(10.0, gt=0, description="update rate, Hz")
 
 
-class GyroConfig(Frozen):
+class GyroConfig(Config):
     """Gyro (defaults: a MEMS CubeSat IMU class)."""
 
     arw_deg_sqrt_h: float = Field(0.15, ge=0, description="angle random walk, deg/sqrt(h)")
@@ -158,7 +175,7 @@ class GyroConfig(Frozen):
     )
 
 
-class SensorsConfig(Frozen):
+class SensorsConfig(Config):
     """Attitude sensors and wheel tachometers."""
 
     star_tracker: StarTrackerConfig = StarTrackerConfig()
@@ -166,7 +183,7 @@ class SensorsConfig(Frozen):
     wheel_speed_noise_rad_s: float = Field(0.01, ge=0, description="one-sigma wheel speed reading noise, rad/s")
 
 
-class CameraConfig(Frozen):
+class CameraConfig(Config):
     """Narrow-angle camera (paper: 2.9 deg horizontal FOV; frames 1024x1024 or 2048x2048, 12-bit)."""
 
     fov_deg: float = Field(2.9, gt=0, lt=90, description="horizontal field of view, deg (paper)")
@@ -223,8 +240,15 @@ class CameraConfig(Frozen):
     )
     hot_pixel_seed: int = Field(7, ge=0, description="seed of the hot-pixel positions and levels (fixed per sensor)")
 
+    @model_validator(mode="after")
+    def _exposure_fits_the_period(self) -> CameraConfig:
+        if self.exposure_s >= self.frame_period_s:
+            raise ValueError(f"exposure_s: {self.exposure_s:g} s must be shorter than frame_period_s "
+                             f"{self.frame_period_s:g} s (a frame is read out before the next one starts)")
+        return self
 
-class PlumeConfig(Frozen):
+
+class PlumeConfig(Config):
     """DART ejecta plume: a hollow-free cone of dust from Dimorphos expanding after the impact.
 
     Particles leave the surface at t = 0 with speeds uniform in [0, speed_m_s] inside the cone, so at time t the
@@ -268,7 +292,7 @@ class PlumeConfig(Frozen):
         return v
 
 
-class OscillatorConfig(Frozen):
+class OscillatorConfig(Config):
     """On-board oscillator: maps true time to on-board time (OBT)."""
 
     initial_offset_s: float = Field(
@@ -287,7 +311,24 @@ class OscillatorConfig(Frozen):
     )
 
 
-class FaultConfig(Frozen):
+FAULT_RULES: dict[str, tuple[bool, str | None]] = {
+    # kind: (needs a wheel index, magnitude: "required", "optional" or None for none)
+    "frame_lost": (False, None),
+    "frame_blank": (False, None),
+    "frame_saturated": (False, None),
+    "star_tracker_outage": (False, None),
+    "gyro_bias_step": (False, "required"),
+    "wheel_stuck": (True, None),
+    "wheel_failed": (True, None),
+    "plume_brightening": (False, "optional"),
+    "clock_jump": (False, "required"),
+    "link_outage": (False, None),
+}
+"""What each fault kind takes; anything else given is refused (it would be ignored in flight)."""
+INSTANTANEOUS_FAULTS = ("clock_jump",)  # acts at start_s: its window may be empty
+
+
+class FaultConfig(Config):
     """A named, time-bounded fault injected by the universe."""
 
     kind: Literal[
@@ -319,8 +360,28 @@ class FaultConfig(Frozen):
             raise ValueError("must not be before start_s")
         return v
 
+    def problems(self, n_wheels: int) -> list[str]:
+        """What is wrong with this fault for a spacecraft of ``n_wheels``, as 'field: message' lines."""
+        needs_wheel, magnitude = FAULT_RULES[self.kind]
+        out = []
+        if needs_wheel and self.wheel is None:
+            out.append(f"wheel: a {self.kind} fault needs the wheel index")
+        elif needs_wheel and self.wheel is not None and self.wheel >= n_wheels:
+            out.append(f"wheel: {self.wheel} is not one of the {n_wheels} wheels (0..{n_wheels - 1})")
+        elif not needs_wheel and self.wheel is not None:
+            out.append(f"wheel: a {self.kind} fault has no wheel (only wheel_stuck and wheel_failed do)")
+        if magnitude == "required" and self.magnitude is None:
+            out.append(f"magnitude: a {self.kind} fault needs its magnitude")
+        elif magnitude is None and self.magnitude is not None:
+            out.append(f"magnitude: a {self.kind} fault takes no magnitude")
+        if self.kind == "plume_brightening" and self.magnitude is not None and self.magnitude <= 0:
+            out.append(f"magnitude: a brightness factor must be > 0, got {self.magnitude:g}")
+        if self.end_s == self.start_s and self.kind not in INSTANTANEOUS_FAULTS:
+            out.append(f"end_s: the window {self.start_s:g}..{self.end_s:g} s is empty: the fault would never act")
+        return out
 
-class ApproachHistoryConfig(Frozen):
+
+class ApproachHistoryConfig(Config):
     """Time reports the spacecraft sent during the approach before the run (ground's correlation history)."""
 
     duration_s: float = Field(
@@ -330,7 +391,7 @@ class ApproachHistoryConfig(Frozen):
     report_period_s: float = Field(600.0, gt=0, description="time between two time reports of the history, true s")
 
 
-class UniverseConfig(Frozen):
+class UniverseConfig(Config):
     """Everything the universe simulates."""
 
     start_s: float = Field(-132.0, description="true time at which the run starts, s after the epoch")
@@ -359,22 +420,18 @@ class UniverseConfig(Frozen):
             raise ValueError("must be after start_s")
         return v
 
-    @field_validator("faults")
-    @classmethod
-    def _faults_complete(cls, faults: list[FaultConfig], info) -> list[FaultConfig]:  # type: ignore[no-untyped-def]
-        """Refuse at load time what would otherwise do nothing or fail mid-run."""
-        sc = info.data.get("spacecraft")
-        n_wheels = 3 if sc is None or sc.wheels.layout == "orthogonal" else 4
+    @model_validator(mode="after")
+    def _faults_fit_the_run(self) -> UniverseConfig:
+        """Refuse at load time a fault that would do nothing or fail mid-run (lines 'faults[i].field: why')."""
+        n_wheels = 3 if self.spacecraft.wheels.layout == "orthogonal" else 4
         problems = []
-        for i, f in enumerate(faults):
-            if f.kind in ("wheel_stuck", "wheel_failed"):
-                if f.wheel is None:
-                    problems.append(f"[{i}].wheel: a {f.kind} fault needs the wheel index")
-                elif f.wheel >= n_wheels:
-                    problems.append(f"[{i}].wheel: {f.wheel} is not one of the {n_wheels} wheels (0..{n_wheels - 1})")
-            if f.kind in ("gyro_bias_step", "clock_jump") and f.magnitude is None:
-                problems.append(f"[{i}].magnitude: a {f.kind} fault needs its magnitude")
+        for i, f in enumerate(self.faults):
+            problems += [f"faults[{i}].{p}" for p in f.problems(n_wheels)]
+            acts_at_start = f.kind in INSTANTANEOUS_FAULTS
+            if f.start_s >= self.end_s or (f.end_s <= self.start_s and not (acts_at_start and f.start_s >= self.start_s)):
+                problems.append(f"faults[{i}].start_s: the window {f.start_s:g}..{f.end_s:g} s is outside the run "
+                                f"{self.start_s:g}..{self.end_s:g} s: the fault would never act")
         if problems:
-            raise ValueError("; ".join(problems))
-        return faults
+            raise ValueError("\n".join(problems))
+        return self
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
@@ -37,8 +38,8 @@ def rotation_taking(a: np.ndarray, b: np.ndarray) -> Rotation:
 def test_range_at_ca_is_ca_distance_and_minimum(approach, ca, d_km, v_km_s, t_ca) -> None:
     """The range to the barycentre equals d_ca at t_ca and exceeds it at every other time (sqrt(d^2 + v^2 dt^2))."""
     a, c = np.array(approach), np.array(ca)
-    if np.linalg.norm(np.cross(a, c)) / (np.linalg.norm(a) * np.linalg.norm(c)) < 1e-3:
-        return  # parallel directions are rejected, tested separately
+    if np.linalg.norm(np.cross(a, c)) / (np.linalg.norm(a) * np.linalg.norm(c)) < np.sin(np.radians(1.0)):
+        return  # within 1 deg of parallel: refused by the config, tested separately
     geo = FlybyGeometry(
         FlybyConfig(
             ca_time_s=t_ca, ca_distance_km=d_km, speed_km_s=v_km_s, approach_direction=approach, ca_direction=ca
@@ -138,8 +139,11 @@ def test_ca_direction_is_made_orthogonal_and_parallel_rejected() -> None:
     """A slanted ca_direction is Gram-Schmidt'ed onto the plane normal to the velocity; a parallel one is an error."""
     geo = FlybyGeometry(FlybyConfig(approach_direction=(2.0, 0, 0), ca_direction=(1.0, 1.0, 0)), BodiesConfig())
     np.testing.assert_allclose(geo.spacecraft_position_m(168.0), [0, 55e3, 0], atol=1e-9)
+    with pytest.raises(ValidationError, match="ca_direction: is 0 deg from parallel"):
+        FlybyConfig(approach_direction=(1, 1, 0), ca_direction=(-2, -2, 0))
+    unchecked = FlybyConfig.model_construct(approach_direction=(1, 1, 0), ca_direction=(-2, -2, 0))
     with pytest.raises(GeometryError, match="ca_direction"):
-        FlybyGeometry(FlybyConfig(approach_direction=(1, 1, 0), ca_direction=(-2, -2, 0)), BodiesConfig())
+        FlybyGeometry(unchecked, BodiesConfig())
 
 
 def test_pointing_error_and_square_fov() -> None:
