@@ -30,8 +30,10 @@ class InProcessRun:
 
 
 def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through_codec: bool = False,
-                   on_step: Callable[[StepRequest, StepReply, np.ndarray | None], None] | None = None) -> InProcessRun:
-    """Run the scenario to its end; ``through_codec`` also encodes and decodes every message, as the bus does."""
+                   on_step: Callable[[StepRequest, StepReply, np.ndarray | None], None] | None = None,
+                   max_steps: int | None = None) -> InProcessRun:
+    """Run the scenario to its end (or its first ``max_steps`` control periods); ``through_codec`` also encodes and
+    decodes every message, as the bus does."""
     sim = compose.universe(scenario)
     fsw = compose.flight_software(scenario)
     ground = compose.ground_segment(scenario, timeline)
@@ -62,7 +64,7 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
             on_step(request, reply, frame)
         out.log += [f"universe: {x}" for x in sim.take_log()] + [f"obsw: {x}" for x in fsw.take_log()]
         nxt = sim.advance(reply)
-        if nxt is None:
+        if nxt is None or (max_steps is not None and sim.step >= max_steps):
             break
         request, blob = nxt
     while (gs := sim.drain()) is not None:

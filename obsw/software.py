@@ -248,8 +248,12 @@ class FlightSoftware:
         if self.modes.mode in TRACKING_MODES:
             raise CommandRejected(RejectReason.BAD_ARGUMENT,
                                   f"nominal trajectory cannot be replaced in {self.modes.mode.name}")
+        try:
+            recognizer = TrajectoryRecognizer(traj, self.cfg.recognition)
+        except ValueError as exc:  # a grid that does not fit the uploaded uncertainty: the ground's fault
+            raise CommandRejected(RejectReason.BAD_ARGUMENT, f"nominal trajectory: {exc}") from None
         self.trajectory = traj
-        self.recognizer = TrajectoryRecognizer(traj, self.cfg.recognition)
+        self.recognizer = recognizer
         self.schedule.reanchor_ca(traj.ca_time_obt_s)
         self.modes.handle(CaEstimate(traj.ca_time_obt_s), obt)
         self._log.append(f"OBT {obt:.2f} s: nominal trajectory loaded: C/A at OBT {traj.ca_time_obt_s:.2f} s, "

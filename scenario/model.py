@@ -15,12 +15,14 @@ from pydantic import Field, ValidationError, field_validator, model_validator
 from contracts.bus import BusConfig
 from contracts.errors import ScenarioError
 from contracts.model import Config
+from contracts.seeding import rng_streams
 from contracts.textfile import TextFileError, load_yaml, read_text
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
 from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
 from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
+from universe.geometry import GeometryError, nominal_ca
 
 if TYPE_CHECKING:
     from timeline.model import Timeline
@@ -50,6 +52,21 @@ class Scenario(Config):
     def _knowledge_defaults_to_truth(cls, data: Any) -> Any:
         return fill_knowledge(data) if isinstance(data, dict) else data
 
+    def _grid_fits_the_belief(self) -> list[str]:
+        """The on-board recognition grid around ground's nominal (truth plus the seeded error) must stay at
+        positive C/A distances, or the flight software refuses the nominal trajectory."""
+        u, rec = self.universe, self.obsw.recognition
+        try:
+            _, ca_km = nominal_ca(u.flyby, u.uncertainty, rng_streams(self.seed)["nominal"])
+        except GeometryError as exc:
+            return [f"universe.uncertainty.ca_distance_sigma_km: {exc}"]
+        low = ca_km - rec.grid_span_sigma * u.uncertainty.ca_distance_sigma_km
+        if low <= 0:
+            return [f"universe.uncertainty.ca_distance_sigma_km: ground's nominal C/A distance {ca_km:.3f} km minus "
+                    f"obsw.recognition.grid_span_sigma {rec.grid_span_sigma:g} x {u.uncertainty.ca_distance_sigma_km:g} "
+                    f"km is {low:.3f} km: the on-board grid would reach non-positive distances"]
+        return []
+
     @field_validator("epoch_utc")
     @classmethod
     def _epoch_readable(cls, v: str) -> str:
@@ -62,6 +79,7 @@ class Scenario(Config):
     @model_validator(mode="after")
     def _sections_agree(self) -> Scenario:
         problems = knowledge_problems(self, set(self.knowledge_errors))
+        problems += self._grid_fits_the_belief()
         u, upload = self.universe, self.ground.upload_nominal_at_s
         if upload is not None and not u.start_s - 1e-9 <= upload < u.end_s:
             problems.append(f"ground.upload_nominal_at_s: {upload:g} s is outside the run {u.start_s:g}..{u.end_s:g} s: "
@@ -75,7 +93,10 @@ def field_path(loc: tuple[int | str, ...]) -> str:
     """A pydantic error location as the scenario file names it: ``universe.faults[2].wheel``."""
     out = ""
     for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+        if isinstance(part, int) or not str(part).isidentifier():
+            out += f"[{part!r}]" if isinstance(part, str) else f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
     return out
 
 
