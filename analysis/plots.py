@@ -1,7 +1,8 @@
-"""The flyby report's images: matplotlib (Agg) plots, the frame mosaic and the animated GIF (pillow).
+"""The report's charts (matplotlib, Agg): pointing, rate, wheels, line-of-sight angle, C/A estimates, centroids,
+modes, and the mosaic of frames.
 
-Each ``*_section`` function takes the loaded run and returns a report Section holding its PNG, or saying what
-it is missing. Times are OBT relative to the true C/A, s.
+Each ``*_section`` function takes the loaded run and its figures and returns a report Section holding its PNG, or
+saying what it is missing. Times are OBT relative to the true C/A (to Dimorphos), s.
 """
 
 from __future__ import annotations
@@ -17,23 +18,16 @@ import numpy as np  # noqa: E402
 from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
-from numpy.typing import NDArray  # noqa: E402
-from PIL import Image, ImageDraw  # noqa: E402
 
 from contracts import pus  # noqa: E402
 from ground.config import ReportConfig  # noqa: E402
 from obsw.recognition import measured_theta_rad  # noqa: E402
-from analysis.report import (  # noqa: E402
-    MODE_NAMES,
-    ReportFigures,
-    RunData,
-    Section,
-    binned_px,
-    candidate_axes,
-    centroid_errors_px,
-    estimate_at,
-    uploaded_nominal,
-)
+from analysis.candidates import candidate_axes, uploaded_nominal  # noqa: E402
+from analysis.frames import frame_marks, frame_obt_s, load_gray, spread_ids  # noqa: E402
+from analysis.page import Section  # noqa: E402
+from analysis.runfolder import RunData  # noqa: E402
+from analysis.scoring import RunFigures, centroid_errors_px, estimate_at  # noqa: E402
+from analysis.telemetry import MODE_NAMES  # noqa: E402
 
 TRUTH_COLOUR, TM_COLOUR, LIMIT_COLOUR, CHOSEN_COLOUR = "tab:blue", "tab:orange", "tab:red", "tab:green"
 
@@ -62,7 +56,7 @@ def _ca_lines(ax, cfg: ReportConfig, window: tuple[float, float] | None = None, 
     ax.set_xlabel("OBT - true C/A, s")
 
 
-def pointing_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def pointing_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """True (and on-board estimated) pointing error against time, with the half-FOV line."""
     limit = data.scenario.universe.camera.fov_deg * cfg.max_pointing_error_fov_fraction
     s = Section("Pointing error", f"Angle between the camera boresight and Dimorphos; it must stay under {limit:g} deg "
@@ -97,7 +91,7 @@ def pointing_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> S
     return s
 
 
-def rate_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def rate_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """True and on-board body rate against time, with the required peak."""
     need = cfg.peak_rate_required_deg_s
     s = Section("Body rate", f"Norm of the body rate; the flyby must reach {need:g} deg/s.", file_name="body_rate.png")
@@ -125,7 +119,7 @@ def rate_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Secti
     return s
 
 
-def wheels_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def wheels_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """Wheel momentum and torque command per wheel, against their limits."""
     w = data.scenario.universe.spacecraft.wheels
     s = Section("Reaction wheels", f"Momentum (limit {w.max_momentum_nms:g} N m s) and torque command (limit "
@@ -159,7 +153,7 @@ def wheels_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sec
     return s
 
 
-def theta_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def theta_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """Measured LOS angle against every candidate's prediction and the chosen candidate's."""
     s = Section("Line-of-sight angle and trajectory candidates",
                 "theta = angle between the relative velocity and the measured line of sight (NavigationReport). "
@@ -221,13 +215,15 @@ def theta_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sect
     return s
 
 
-def estimates_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
-    """Estimated minus true C/A time and distance over time, grid and continuous (with one sigma)."""
+def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
+    """Estimated minus true C/A (to Dimorphos) time and distance over time, grid and continuous (with one sigma),
+    and where the Didymos barycentre's C/A lies on the same axes."""
     s = Section("C/A estimates against the truth",
-                "On-board estimates of the C/A time and distance minus the truth, as they evolved (EstimateReport; "
-                "grid choice also from housekeeping).", file_name="ca_estimates.png")
+                "On-board estimates of the C/A time and distance minus the true C/A to Dimorphos, as they evolved "
+                "(EstimateReport; grid choice also from housekeeping). The dashed line is the C/A to the Didymos "
+                "barycentre on the same axes.", file_name="ca_estimates.png")
     tm, ca = data.telemetry, figs.true_ca_obt_s
-    d_true = data.scenario.universe.flyby.ca_distance_km
+    d_true = figs.true_ca_distance_km
     hk = [(t, h.best_ca_obt_s, h.best_ca_distance_km) for t, h in (tm.housekeeping if tm else [])
           if h.best_ca_obt_s is not None]
     est = tm.estimates if tm else []
@@ -255,8 +251,9 @@ def estimates_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> 
         for ax, val, sig in ((ax_t, c[:, 1] - ca, c[:, 3]), (ax_d, c[:, 2] - d_true, c[:, 4])):
             ax.plot(x, val, color=TM_COLOUR, label="continuous")
             ax.fill_between(x, val - sig, val + sig, color=TM_COLOUR, alpha=0.2, label="continuous 1 sigma")
-    for ax in (ax_t, ax_d):
-        ax.axhline(0.0, color="k", lw=0.8)
+    for ax, bary in ((ax_t, figs.didymos_ca_obt_s - ca), (ax_d, figs.didymos_ca_distance_km - d_true)):
+        ax.axhline(0.0, color="k", lw=0.8, label="Dimorphos (truth)")
+        ax.axhline(bary, color="k", lw=0.8, ls="--", label="Didymos barycentre")
         _ca_lines(ax, cfg)
         ax.legend(loc="upper right", fontsize=8)
     ax_t.set_ylabel("C/A time error, s")
@@ -265,7 +262,7 @@ def estimates_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> 
     return s
 
 
-def centroid_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def centroid_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """Distance of each detected Dimorphos centroid from its true projection (binned px), with the tolerance."""
     tol = cfg.centroid_tolerance_px
     s = Section("Centroid error", f"Detected Dimorphos centroid (NavigationReport) minus the truth projection at the "
@@ -309,7 +306,7 @@ def mode_intervals(changes: Sequence[tuple[float, pus.ModeChangedEvent]], hk: Se
     return out
 
 
-def modes_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def modes_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """The on-board mode against time."""
     s = Section("Mode timeline", "On-board mode from the ModeChangedEvents (housekeeping mode as dots).",
                 file_name="modes.png")
@@ -335,58 +332,7 @@ def modes_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sect
     return s
 
 
-def spread_ids(ids: Sequence[int], count: int) -> list[int]:
-    """At most ``count`` of ``ids`` (sorted), evenly spread from the first to the last."""
-    ids = sorted(ids)
-    if len(ids) <= count:
-        return ids
-    picks = np.unique(np.round(np.linspace(0, len(ids) - 1, count)).astype(int))
-    return [ids[i] for i in picks]
-
-
-def frame_marks(data: RunData, frame_id: int, png_side: int) -> dict[str, tuple[float, float] | None]:
-    """Detected and true Dimorphos/Didymos positions of a frame, in the PNG's pixel coordinates."""
-    marks: dict[str, tuple[float, float] | None] = dict.fromkeys(("det_dim", "det_did", "true_dim", "true_did"))
-    n_bin = data.scenario.obsw.imaging.binned_size_px
-    if data.telemetry is not None:
-        for _, nav in data.telemetry.navigation:
-            if nav.frame_id == frame_id:
-                k = png_side / n_bin
-                # binned pixel centres map to PNG pixel centres: same binning formula with factor 1/k
-                if nav.dimorphos_col_row is not None:
-                    marks["det_dim"] = tuple(binned_px(np.asarray(nav.dimorphos_col_row), 1 / k))
-                if nav.didymos_col_row is not None:
-                    marks["det_did"] = tuple(binned_px(np.asarray(nav.didymos_col_row), 1 / k))
-    truth = data.truth
-    if truth is not None:
-        rows = np.flatnonzero(truth.frame_id == frame_id)
-        if rows.size:
-            b = data.scenario.universe.camera.resolution_px / png_side
-            for key, px in (("true_dim", truth.dimorphos_px[rows[0]]), ("true_did", truth.didymos_px[rows[0]])):
-                if np.all(np.isfinite(px)):
-                    marks[key] = tuple(binned_px(px, b))
-    return marks
-
-
-def frame_obt_s(data: RunData, frame_id: int) -> float | None:
-    """OBT of a frame's exposure, from the truth or else its NavigationReport; None if neither has it."""
-    if data.truth is not None:
-        rows = np.flatnonzero(data.truth.frame_id == frame_id)
-        if rows.size:
-            return float(data.truth.obt_s[rows[0]])
-    if data.telemetry is not None:
-        for t, nav in data.telemetry.navigation:
-            if nav.frame_id == frame_id:
-                return t
-    return None
-
-
-def _load_gray(path) -> NDArray[np.uint8]:
-    with Image.open(path) as im:
-        return np.asarray(im.convert("L"))
-
-
-def mosaic_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
+def mosaic_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """A mosaic of frames spread over the flyby with the detected (+) and true (o) positions drawn."""
     s = Section("Camera frames", "Frames spread over the flyby: red + detected Dimorphos, green o true Dimorphos, "
                 "orange x detected Didymos, cyan o true Didymos (NavigationReport vs truth projection).",
@@ -405,7 +351,7 @@ def mosaic_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sec
     FigureCanvasAgg(fig)
     for k, fid in enumerate(ids):
         ax = fig.add_subplot(rows, cols, k + 1)
-        img = _load_gray(data.frames[fid])
+        img = load_gray(data.frames[fid])
         ax.imshow(img, cmap="gray", vmin=0, vmax=255, interpolation="nearest")
         m = frame_marks(data, fid, img.shape[1])
         styles = {"det_dim": ("+", "red", 12), "true_dim": ("o", "lime", 10), "det_did": ("x", "orange", 9),
@@ -424,86 +370,10 @@ def mosaic_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Sec
     return s
 
 
-_GRAYS = 250  # palette 0..249 grey levels, then the marker colours
-_RED, _GREEN, _ORANGE, _CYAN, _WHITE = 250, 251, 252, 253, 254
 
 
-def _palette() -> list[int]:
-    grays = [round(i * 255 / (_GRAYS - 1)) for i in range(_GRAYS)]
-    pal = [c for g in grays for c in (g, g, g)]
-    pal += [255, 0, 0, 0, 255, 0, 255, 165, 0, 0, 255, 255, 255, 255, 255, 0, 0, 0]
-    return pal
-
-
-def gif_frame(data: RunData, frame_id: int, ca_obt_s: float) -> Image.Image:
-    """One animation frame: the PNG in a fixed grey palette with the marks and a time label."""
-    gray = _load_gray(data.frames[frame_id])
-    lut = np.round(np.arange(256) * (_GRAYS - 1) / 255).astype(np.uint8)
-    im = Image.fromarray(lut[gray], mode="P")
-    im.putpalette(_palette())
-    draw = ImageDraw.Draw(im)
-    m = frame_marks(data, frame_id, gray.shape[1])
-    r = 7
-    if m["true_dim"] is not None:
-        x, y = m["true_dim"]
-        draw.ellipse((x - r, y - r, x + r, y + r), outline=_GREEN)
-    if m["true_did"] is not None:
-        x, y = m["true_did"]
-        draw.ellipse((x - 2 * r, y - 2 * r, x + 2 * r, y + 2 * r), outline=_CYAN)
-    if m["det_dim"] is not None:
-        x, y = m["det_dim"]
-        draw.line((x - r, y, x + r, y), fill=_RED)
-        draw.line((x, y - r, x, y + r), fill=_RED)
-    if m["det_did"] is not None:
-        x, y = m["det_did"]
-        draw.line((x - r, y - r, x + r, y + r), fill=_ORANGE)
-        draw.line((x - r, y + r, x + r, y - r), fill=_ORANGE)
-    obt = frame_obt_s(data, frame_id)
-    label = f"frame {frame_id}" + ("" if obt is None else f"  C/A{obt - ca_obt_s:+.1f} s")
-    draw.text((6, 6), label, fill=_WHITE)
-    return im
-
-
-def flyby_gif(data: RunData, ca_obt_s: float, cfg: ReportConfig) -> tuple[bytes, int]:
-    """The animated GIF of the saved frames with detections drawn, and its frame count.
-
-    At most ``gif_max_frames`` frames evenly spread, fewer until the file is under ``gif_max_bytes``.
-    """
-    count = cfg.gif_max_frames
-    drawn: dict[int, Image.Image] = {}  # a thinner retry reuses the frames already drawn
-    while True:
-        ids = spread_ids(list(data.frames), count)
-        for fid in ids:
-            if fid not in drawn:
-                drawn[fid] = gif_frame(data, fid, ca_obt_s)
-        frames = [drawn[fid] for fid in ids]
-        buf = io.BytesIO()
-        frames[0].save(buf, format="GIF", save_all=True, append_images=frames[1:], duration=cfg.gif_frame_ms,
-                       loop=0, disposal=1)
-        if buf.tell() <= cfg.gif_max_bytes or len(ids) == 1:
-            return buf.getvalue(), len(ids)
-        # frames cost about the same each: scale the count to the budget, with 5% margin
-        count = max(1, min(len(ids) - 1, int(len(ids) * 0.95 * cfg.gif_max_bytes / buf.tell())))
-
-
-def gif_section(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> Section:
-    """The animated GIF, written to report/flyby.gif and shown from there."""
-    s = Section("The flyby as the camera saw it", "Animated frames with the same marks as the mosaic "
-                "(report/flyby.gif, beside this page).")
-    if not data.frames:
-        s.missing.append("no frame PNGs in frames/: no animation")
-        return s
-    gif, n = flyby_gif(data, figs.true_ca_obt_s, cfg)
-    out = data.run_dir / "report" / "flyby.gif"
-    out.parent.mkdir(exist_ok=True)
-    out.write_bytes(gif)
-    s.html_body = "<img alt='flyby animation' src='report/flyby.gif'>"
-    s.notes.append(f"{n} of {len(data.frames)} saved frames, {len(gif) / 1e6:.1f} MB")
-    return s
-
-
-def plot_sections(data: RunData, figs: ReportFigures, cfg: ReportConfig) -> list[Section]:
-    """Every image section of the report, in reading order."""
+def chart_sections(data: RunData, figs: RunFigures, cfg: ReportConfig) -> list[Section]:
+    """Every chart section of the report, in reading order (the mosaic last)."""
     makers = (pointing_section, rate_section, wheels_section, theta_section, estimates_section, centroid_section,
-              modes_section, mosaic_section, gif_section)
+              modes_section, mosaic_section)
     return [make(data, figs, cfg) for make in makers]

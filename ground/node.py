@@ -25,6 +25,7 @@ from contracts import pus
 from contracts.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
 from contracts.exitcodes import EXIT_OK
 from contracts.runtime import Attachment
+from contracts.truthtable import TruthTable
 from ground.archive import Archive
 from ground.operator import OperatorError, command_request, timeline_request, trajectory_request
 from ground.segment import GroundSegment, ReceivedPacket
@@ -32,35 +33,21 @@ from ground.segment import GroundSegment, ReceivedPacket
 log = logging.getLogger("ground")
 
 
-TRUTH_COLUMNS = ("t_s", "obt_s", "qx", "qy", "qz", "qw", "wx_rad_s", "wy_rad_s", "wz_rad_s",
-                 "pointing_error_rad", "target_in_fov", "range_m", "theta_rad", "phase_angle_deg")
-
-
 class TruthLog:
-    """The universe's truth, one CSV row per control period (wheel columns follow the wheel count)."""
+    """The universe's truth, one CSV row per control period, in the columns of ``contracts.truthtable``."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
         self._f: IO[str] = open(path, "w", newline="")
         self._w = csv.writer(self._f)
-        self._header = False
+        self._table: TruthTable | None = None
 
     def add(self, rec: TruthRecord) -> None:
-        """Append one record."""
-        if not self._header:
-            n = len(rec.wheel_momentum_nms)
-            self._w.writerow([*TRUTH_COLUMNS, "frame_id", "dimorphos_col", "dimorphos_row", "didymos_col",
-                              "didymos_row", *(f"h{i}_nms" for i in range(n)), *(f"u{i}_nm" for i in range(n)),
-                              "los_dim_x", "los_dim_y", "los_dim_z", "los_did_x", "los_did_y", "los_did_z",
-                              "dim_cam_x", "dim_cam_y", "dim_cam_z", "range_didymos_m"])
-            self._header = True
-        self._w.writerow([rec.t_s, rec.obt_s, *rec.q, *rec.omega_rad_s, rec.pointing_error_rad,
-                          int(rec.target_in_fov), rec.range_m, rec.theta_rad, rec.phase_angle_deg,
-                          "" if rec.frame_id is None else rec.frame_id, *(rec.dimorphos_px or ("", "")),
-                          *(rec.didymos_px or ("", "")), *rec.wheel_momentum_nms, *rec.wheel_torque_nm,
-                          *(rec.los_dimorphos_inertial or ("", "", "")), *(rec.los_didymos_inertial or ("", "", "")),
-                          *(rec.dimorphos_camera or ("", "", "")),
-                          "" if rec.range_didymos_m is None else rec.range_didymos_m])
+        """Append one record (the first one fixes the wheel count of the header)."""
+        if self._table is None:
+            self._table = TruthTable.for_record(rec)
+            self._w.writerow(self._table.columns)
+        self._w.writerow(self._table.cells(rec))
 
     def close(self) -> None:
         """Flush and close the file."""

@@ -1,0 +1,88 @@
+"""The telemetry of a run, decoded by kind: from tm.bin, else from the raw packets of archive.sqlite."""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from contracts import pus
+
+MODE_NAMES = {m.value: m.name for m in pus.Mode}
+
+
+@dataclass
+class Telemetry:
+    """The decoded telemetry of a run, by kind, each entry (packet OBT s, report), in stream order."""
+
+    source: str
+    packets: int = 0
+    undecodable: int = 0
+    truncated_tail_octets: int = 0
+    housekeeping: list[tuple[float, pus.Housekeeping]] = field(default_factory=list)
+    navigation: list[tuple[float, pus.NavigationReport]] = field(default_factory=list)
+    estimates: list[tuple[float, pus.EstimateReport]] = field(default_factory=list)
+    mode_changes: list[tuple[float, pus.ModeChangedEvent]] = field(default_factory=list)
+    events: list[tuple[float, pus.EventReport]] = field(default_factory=list)
+    by_type: dict[tuple[int, int, str], int] = field(default_factory=dict)  # (service, subtype, report): count
+
+
+def complete_packets(stream: bytes) -> tuple[list[bytes], int]:
+    """Cut a stream of concatenated space packets; return the packets and the octets of an incomplete last one.
+
+    Like ``pus.split_packets``, but a stream cut short (a node killed mid-write) keeps every complete packet.
+    """
+    out: list[bytes] = []
+    pos, n = 0, len(stream)
+    while n - pos >= pus.PRIMARY_HEADER_LEN:
+        size = pus.PRIMARY_HEADER_LEN + int.from_bytes(stream[pos + 4 : pos + 6], "big") + 1  # CCSDS length field
+        if pos + size > n:
+            break
+        out.append(stream[pos : pos + size])
+        pos += size
+    return out, n - pos
+
+
+def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
+    """Decode TM packets into a Telemetry; undecodable ones are counted, never fatal."""
+    tm = Telemetry(source=source, packets=len(packets))
+    for raw in packets:
+        try:
+            header, report = pus.decode_tm(raw)
+        except pus.PacketError:
+            tm.undecodable += 1
+            continue
+        key = (header.service, header.subservice, type(report).__name__)
+        tm.by_type[key] = tm.by_type.get(key, 0) + 1
+        t = header.obt_s
+        if isinstance(report, pus.Housekeeping):
+            tm.housekeeping.append((t, report))
+        elif isinstance(report, pus.NavigationReport):
+            tm.navigation.append((t, report))
+        elif isinstance(report, pus.EstimateReport):
+            tm.estimates.append((t, report))
+        elif isinstance(report, pus.EventReport):
+            tm.events.append((t, report))
+            if isinstance(report, pus.ModeChangedEvent):
+                tm.mode_changes.append((t, report))
+    return tm
+
+
+def load_telemetry(run_dir: Path) -> Telemetry | None:
+    """The run's telemetry from tm.bin, else from the raw packets in archive.sqlite; None if neither exists."""
+    tm_bin = run_dir / "tm.bin"
+    if tm_bin.is_file():
+        packets, tail = complete_packets(tm_bin.read_bytes())
+        tm = decoded_telemetry(packets, "tm.bin")
+        tm.truncated_tail_octets = tail
+        return tm
+    db = run_dir / "archive.sqlite"
+    if db.is_file():
+        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)  # read-only: a report never changes the archive
+        try:
+            raws = [bytes(r) for (r,) in con.execute("SELECT raw FROM packets ORDER BY id")]
+        finally:
+            con.close()
+        return decoded_telemetry(raws, "archive.sqlite (no tm.bin)")
+    return None

@@ -1,0 +1,103 @@
+"""The simulation truth of a run as arrays: from truth.csv (``contracts.truthtable``) or from TruthRecords."""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from contracts.messages import TruthRecord
+from contracts.truthtable import TruthTable, TruthTableError
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The truth, one row per control period; NaN where a record has None (-1 for ``frame_id``)."""
+
+    t_s: NDArray[np.float64]
+    obt_s: NDArray[np.float64]
+    omega_rad_s: NDArray[np.float64]  # (N, 3)
+    pointing_error_rad: NDArray[np.float64]
+    target_in_fov: NDArray[np.bool_]
+    theta_rad: NDArray[np.float64]
+    range_m: NDArray[np.float64]  # spacecraft to Dimorphos
+    range_didymos_m: NDArray[np.float64]  # spacecraft to the Didymos centre
+    los_dimorphos_inertial: NDArray[np.float64]  # (N, 3) unit vectors, spacecraft to Dimorphos
+    frame_id: NDArray[np.int64]
+    dimorphos_px: NDArray[np.float64]  # (N, 2) full-resolution (col, row)
+    didymos_px: NDArray[np.float64]  # (N, 2)
+    wheel_momentum_nms: NDArray[np.float64]  # (N, wheels)
+    wheel_torque_nm: NDArray[np.float64]  # (N, wheels)
+    skipped_rows: int = 0
+    skip_reason: str = ""  # why the first skipped row was skipped
+
+    def __len__(self) -> int:
+        return int(self.t_s.size)
+
+    @classmethod
+    def from_records(cls, records: Sequence[TruthRecord], skipped_rows: int = 0, skip_reason: str = "") -> Truth:
+        """The arrays of a sequence of records (an in-process run's truth, or truth.csv read back)."""
+        def vec(name: str, width: int) -> NDArray[np.float64]:
+            nan = (np.nan,) * width
+            rows = [nan if (v := getattr(r, name)) is None else v for r in records]
+            return np.array(rows, dtype=float).reshape(len(records), width)
+
+        def scalar(name: str) -> NDArray[np.float64]:
+            return vec(name, 1)[:, 0]
+
+        wheels = len(records[0].wheel_momentum_nms) if records else 0
+        return cls(
+            t_s=scalar("t_s"),
+            obt_s=scalar("obt_s"),
+            omega_rad_s=vec("omega_rad_s", 3),
+            pointing_error_rad=scalar("pointing_error_rad"),
+            target_in_fov=np.array([r.target_in_fov for r in records], dtype=bool),
+            theta_rad=scalar("theta_rad"),
+            range_m=scalar("range_m"),
+            range_didymos_m=scalar("range_didymos_m"),
+            los_dimorphos_inertial=vec("los_dimorphos_inertial", 3),
+            frame_id=np.array([-1 if r.frame_id is None else r.frame_id for r in records], dtype=np.int64),
+            dimorphos_px=vec("dimorphos_px", 2),
+            didymos_px=vec("didymos_px", 2),
+            wheel_momentum_nms=vec("wheel_momentum_nms", wheels),
+            wheel_torque_nm=vec("wheel_torque_nm", wheels),
+            skipped_rows=skipped_rows,
+            skip_reason=skip_reason,
+        )
+
+
+def read_truth_records(path: Path) -> tuple[list[TruthRecord], int, str]:
+    """The records of a truth.csv, how many rows were skipped and why the first was.
+
+    A row is skipped, and counted, if its cell count differs from the header's (a node killed mid-write) or a
+    cell does not read (``TruthTableError``). Raises TruthTableError naming the file if the header is unusable.
+    """
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        raise TruthTableError(f"{path}: empty file, no header")
+    header = rows[0]
+    try:
+        table = TruthTable.for_header(header)
+    except TruthTableError as err:
+        raise TruthTableError(f"{path}: {err}") from None
+    records: list[TruthRecord] = []
+    skipped, reason = 0, ""
+    for n, row in enumerate(rows[1:], start=2):
+        try:
+            if len(row) != len(header):
+                raise TruthTableError(f"{len(row)} cells, the header has {len(header)}")
+            records.append(table.record(dict(zip(header, row, strict=True))))
+        except TruthTableError as err:
+            skipped += 1
+            reason = reason or f"line {n}: {err}"
+    return records, skipped, reason
+
+
+def load_truth(path: Path) -> Truth:
+    """truth.csv as arrays; see ``read_truth_records`` for the rows it skips and the errors it raises."""
+    return Truth.from_records(*read_truth_records(path))

@@ -1,0 +1,65 @@
+"""The truth as the analysis reads it: what ground's TruthLog wrote comes back record for record, and as arrays."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from analysis.truth import Truth, load_truth, read_truth_records
+from contracts.messages import TruthRecord
+from ground.node import TruthLog
+from tests.contracts.test_truthtable import records
+
+
+@settings(max_examples=30, deadline=None)
+@given(data=st.data(), wheels=st.integers(1, 4))
+def test_truth_log_reads_back_every_record(tmp_path_factory, data: st.DataObject, wheels: int) -> None:
+    """Records written by ground's TruthLog are read back equal by the analysis, every field included."""
+    recs = data.draw(st.lists(records(wheels), min_size=1, max_size=5))
+    path = tmp_path_factory.mktemp("truth") / "truth.csv"
+    log = TruthLog(path)
+    for r in recs:
+        log.add(r)
+    log.close()
+    assert read_truth_records(path) == (recs, 0, "")
+
+
+def record(t: float, frame: int | None) -> TruthRecord:
+    """A plain record at time t, with or without a frame."""
+    return TruthRecord(t_s=t, obt_s=t + 10.0, q=(0.0, 0.0, 0.0, 1.0), omega_rad_s=(0.1, 0.2, 0.2),
+                       wheel_momentum_nms=(1.0, 2.0), wheel_torque_nm=(0.5, -0.5), pointing_error_rad=0.01,
+                       target_in_fov=frame is not None, range_m=1000.0 - t, theta_rad=0.5, phase_angle_deg=40.0,
+                       frame_id=frame, dimorphos_px=None if frame is None else (10.0 + t, 20.0))
+
+
+def test_arrays_hold_the_records_with_nan_for_none() -> None:
+    """Truth.from_records: one row per record, NaN (frame -1) where a field is None."""
+    truth = Truth.from_records([record(0.0, None), record(1.0, 4)])
+    assert len(truth) == 2
+    assert truth.frame_id.tolist() == [-1, 4]
+    assert truth.target_in_fov.tolist() == [False, True]
+    assert np.isnan(truth.dimorphos_px[0]).all() and truth.dimorphos_px[1].tolist() == [11.0, 20.0]
+    assert np.linalg.norm(truth.omega_rad_s, axis=1) == pytest.approx([0.3, 0.3])
+    assert truth.wheel_torque_nm.tolist() == [[0.5, -0.5], [0.5, -0.5]]
+    assert math.isnan(truth.range_didymos_m[0])
+
+
+def test_cut_and_bad_rows_are_skipped_and_counted(tmp_path: Path) -> None:
+    """A row cut short and a row with a bad cell are skipped; the count and the first reason are kept."""
+    path = tmp_path / "truth.csv"
+    log = TruthLog(path)
+    for i in range(3):
+        log.add(record(float(i), i))
+    log.close()
+    lines = path.read_text().splitlines()
+    lines[2] = lines[2].replace("0.01", "oops", 1)  # pointing_error_rad of the second record
+    path.write_text("\n".join(lines) + "\n" + lines[3][:20] + "\n")
+    truth = load_truth(path)
+    assert len(truth) == 2 and truth.t_s.tolist() == [0.0, 2.0]
+    assert truth.skipped_rows == 2
+    assert truth.skip_reason == "line 3: pointing_error_rad: 'oops' is not a float"
