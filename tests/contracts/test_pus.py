@@ -440,7 +440,7 @@ def _tc(service: int, sub: int, app_data: bytes) -> bytes:
         (_tc(200, 3, struct.pack(">dd", -1.0, 0.1)), "SetCameraCadence.period_s"),
         (_tc(200, 2, struct.pack(">11d", 1, 55, 7, 1, 0, 0, 1, 0, 0, 1, 1)), "UploadNominalTrajectory"),
         (_tc(200, 2, struct.pack(">11d", 1, 55, 7, 2, 0, 0, 0, 1, 0, 1, 1)), "UploadNominalTrajectory"),
-        (_tc(200, 4, struct.pack(">Bd", 2, 1.0)), "StartImaging.period_s.present"),
+        (_tc(200, 4, struct.pack(">Bd", 2, 1.0)), "StartImaging.flags"),
         (_tc(9, 1, b""), "SetTimeReportRate.rate_exponent"),
         (_tc(11, 5, b"\x00\x02" + RequestId(apid=1, seq_count=1).packed()), "DeleteActivities.request_ids[1]"),
         (_tc(11, 5, b"\x00\x01\x00\x01\xc0\x01"), "DeleteActivities.request_ids[0]"),
