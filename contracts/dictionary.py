@@ -116,8 +116,8 @@ _FAILURE = ("failure_code", "reason")
 
 
 class Verification(Report, service=1, subtypes={1: _FAILURE, 2: (), 3: _FAILURE, 4: (), 7: _FAILURE, 8: ()}):
-    """Verification report of one TC at one stage: subtype 1/3/7 success, 2/4/8 failure, of acceptance/start/
-    completion; a failure carries a code and a reason."""
+    """Verification report of one TC at one stage (acceptance, start or completion: subtype 1, 3, 7 on success,
+    2, 4, 8 on failure); a failure carries a code and a reason."""
 
     OFF_WIRE: ClassVar[tuple[str, ...]] = ("stage",)
     stage: Stage = field("acceptance, start or completion (the subtype)")
