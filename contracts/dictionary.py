@@ -26,7 +26,7 @@ from typing import Annotated, Any, ClassVar
 
 from pydantic import AfterValidator, model_validator
 
-from contracts.mode import Mode
+from contracts.mode import Mode  # noqa: F401  (re-exported: the packets' mode field)
 from contracts.packet import (
     Constant,
     Count,

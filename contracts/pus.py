@@ -22,52 +22,8 @@ from spacepackets.ecss.tc import InvalidTcCrc16Error, PusTc
 from spacepackets.ecss.tm import InvalidTmCrc16Error, PusTm
 
 from contracts.cuc import CUC_LEN, CucError, cuc_decode, cuc_encode
-from contracts.dictionary import (
-    CRC_LEN,
-    DICTIONARY,
-    HK_SID,
-    HK_WHEEL_SLOTS,
-    MISSION_SERVICE,
-    TC_SECONDARY_HEADER_LEN,
-    AdjustObt,
-    ClockJumpEvent,
-    CommandRejectedEvent,
-    DeleteActivities,
-    DetailReportRequest,
-    DisableSchedule,
-    EnableSchedule,
-    EstimateReport,
-    EventId,
-    EventReport,
-    FaultEvent,
-    Housekeeping,
-    InsertActivities,
-    ModeChangedEvent,
-    NavigationReport,
-    Ping,
-    PingReply,
-    RequestTimeReports,
-    ResetSchedule,
-    ScheduledActivity,
-    ScheduleDetailReport,
-    ScheduleSummaryEntry,
-    ScheduleSummaryReport,
-    SetCameraCadence,
-    SetMode,
-    SetTimeReportRate,
-    Severity,
-    Stage,
-    StartImaging,
-    StopImaging,
-    SummaryReportRequest,
-    TargetAcquiredEvent,
-    TargetLostEvent,
-    TimeReport,
-    TimeShiftActivities,
-    UploadNominalTrajectory,
-    Verification,
-    WheelSaturationEvent,
-)
+from contracts.dictionary import *  # noqa: F403  (the facade: callers write pus.SetMode, pus.Housekeeping...)
+from contracts.dictionary import CRC_LEN, DICTIONARY, TC_SECONDARY_HEADER_LEN, Housekeeping, Severity
 from contracts.mode import Mode
 from contracts.model import Frozen
 from contracts.packet import Packet
@@ -76,7 +32,7 @@ from contracts.packet_errors import (
     MAX_SEQ_COUNT,
     BadArgument,
     CrcMismatch,
-    FailureCode,
+    FailureCode,  # re-exported
     LengthMismatch,
     MalformedPacket,
     PacketError,
@@ -85,7 +41,7 @@ from contracts.packet_errors import (
     UnknownService,
     WrongApid,
 )
-from contracts.wire import MAX_TEXT_OCTETS, PRIMARY_HEADER_LEN, Reader
+from contracts.wire import PRIMARY_HEADER_LEN, Reader
 from contracts.wire import packet_len as _packet_len
 
 TM_SECONDARY_HEADER_LEN = 7 + CUC_LEN
