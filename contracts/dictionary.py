@@ -193,6 +193,11 @@ class Housekeeping(Report, service=3, subtype=25):
 # Service 5 ----------------------------------------------------------------------------------------------
 
 
+def _severity(default: Severity) -> Any:
+    """The severity field of an event, with the event's usual severity."""
+    return field("event severity (the subtype)", default=default)
+
+
 class EventReport(Report):
     """Base of the event reports: the subtype is the severity, the first u16 of the data the event id."""
 
@@ -219,7 +224,7 @@ class ModeChangedEvent(EventReport):
     """The mode manager made a transition: from, to, and why."""
 
     EVENT_ID: ClassVar[EventId] = EventId.MODE_CHANGED
-    severity: Severity = field("event severity (the subtype)", default=Severity.INFO)
+    severity: Severity = _severity(Severity.INFO)
     from_mode: Mode8 = field("mode before the transition")
     to_mode: Mode8 = field("mode after the transition")
     cause: Text = field("what triggered the transition (command, event, time)", default="")
@@ -229,7 +234,7 @@ class TargetAcquiredEvent(EventReport):
     """The imaging chain found the target: centroid and area in the processed (binned) image."""
 
     EVENT_ID: ClassVar[EventId] = EventId.TARGET_ACQUIRED
-    severity: Severity = field("event severity (the subtype)", default=Severity.INFO)
+    severity: Severity = _severity(Severity.INFO)
     centroid_x_px: F32 = field("centroid column in the processed image", "px")
     centroid_y_px: F32 = field("centroid row in the processed image", "px")
     area_px: U32 = field("area of the target region", "px")
@@ -239,7 +244,7 @@ class TargetLostEvent(EventReport):
     """The target has not been seen for longer than the timeout."""
 
     EVENT_ID: ClassVar[EventId] = EventId.TARGET_LOST
-    severity: Severity = field("event severity (the subtype)", default=Severity.MEDIUM)
+    severity: Severity = _severity(Severity.MEDIUM)
     unseen_s: F32 = field("time since the target was last seen, OBT", "s", ge=0)
 
 
@@ -247,7 +252,7 @@ class WheelSaturationEvent(EventReport):
     """A reaction wheel reached its momentum limit."""
 
     EVENT_ID: ClassVar[EventId] = EventId.WHEEL_SATURATION
-    severity: Severity = field("event severity (the subtype)", default=Severity.MEDIUM)
+    severity: Severity = _severity(Severity.MEDIUM)
     wheel: U8 = field("wheel index")
     momentum_nms: F32 = field("wheel momentum at saturation", "N m s")
 
@@ -256,7 +261,7 @@ class FaultEvent(EventReport):
     """An on-board fault was detected."""
 
     EVENT_ID: ClassVar[EventId] = EventId.FAULT
-    severity: Severity = field("event severity (the subtype)", default=Severity.HIGH)
+    severity: Severity = _severity(Severity.HIGH)
     fault_code: U16 = field("OBSW-defined fault code")
     reason: Text = field("what failed", default="")
 
@@ -265,7 +270,7 @@ class ClockJumpEvent(EventReport):
     """On-board time stepped between two control periods by more than the jump threshold."""
 
     EVENT_ID: ClassVar[EventId] = EventId.CLOCK_JUMP
-    severity: Severity = field("event severity (the subtype)", default=Severity.MEDIUM)
+    severity: Severity = _severity(Severity.MEDIUM)
     step_s: Finite = field("OBT step beyond the control period (negative: backwards)", "s")
 
 
@@ -273,7 +278,7 @@ class CommandRejectedEvent(EventReport):
     """A TC was rejected (its service 1 failure report carries the reason text)."""
 
     EVENT_ID: ClassVar[EventId] = EventId.COMMAND_REJECTED
-    severity: Severity = field("event severity (the subtype)", default=Severity.LOW)
+    severity: Severity = _severity(Severity.LOW)
     request_id: Rid = field("the rejected TC")
     failure_code: U16 = field("service 1 failure code of the rejection")
 
