@@ -24,7 +24,6 @@ from spacepackets.ecss.tm import InvalidTmCrc16Error, PusTm
 from contracts.cuc import CUC_LEN, CucError, cuc_decode, cuc_encode
 from contracts.dictionary import *  # noqa: F403  (the facade: callers write pus.SetMode, pus.Housekeeping...)
 from contracts.dictionary import CRC_LEN, DICTIONARY, TC_SECONDARY_HEADER_LEN, Housekeeping, Severity
-from contracts.mode import Mode
 from contracts.model import Frozen
 from contracts.packet import Packet
 from contracts.packet_errors import (
@@ -47,8 +46,7 @@ from contracts.wire import packet_len as _packet_len
 TM_SECONDARY_HEADER_LEN = 7 + CUC_LEN
 SEQ_COUNT_MODULO = MAX_SEQ_COUNT + 1
 MAX_PACKET_LEN = PRIMARY_HEADER_LEN + 0x10000
-HK_SIZE = len(Housekeeping(mode=Mode.SAFE, q=(0, 0, 0, 1), rate_rad_s=(0, 0, 0), wheel_speed_rad_s=(0,),
-                           wheel_momentum_nms=(0,)).app_data())
+HK_SIZE = sum(it.wire.octets or 0 for it in Housekeeping.LAYOUT)  # a fixed layout: 85 octets
 
 # Unions of the declared classes, for annotations and isinstance checks.
 TcCommand: TypeAlias = Union[tuple(p for p in DICTIONARY.packets if p.KIND == "TC")]  # type: ignore[valid-type]
@@ -58,7 +56,8 @@ TmReport: TypeAlias = Union[tuple(p for p in DICTIONARY.packets if p.KIND == "TM
 
 def _declared(value: object, kind: str) -> bool:
     """Whether ``value`` is a packet of the dictionary of ``kind`` ('TC' or 'TM')."""
-    return isinstance(value, Packet) and value.KIND == kind and DICTIONARY.by_name.get(type(value).__name__) is type(value)
+    declared = isinstance(value, Packet) and DICTIONARY.by_name.get(type(value).__name__) is type(value)
+    return declared and value.KIND == kind  # type: ignore[union-attr]
 
 
 class TcHeader(Frozen):

@@ -45,9 +45,8 @@ class Reader:
         s = struct.Struct(">" + fmt)
         end = self.pos + s.size
         if end > len(self.data):
-            raise self.fault(
-                field, f"missing: application data ends at octet {len(self.data)}, field needs octets {self.pos}..{end - 1}"
-            )
+            raise self.fault(field, f"missing: application data ends at octet {len(self.data)}, "
+                                    f"field needs octets {self.pos}..{end - 1}")
         values = s.unpack_from(self.data, self.pos)
         self.pos = end
         return values

@@ -256,14 +256,16 @@ class FlightSoftware:
         self.schedule.time_shift(obt, cmd.delta_s, sel)
 
     def _summary_report(self, cmd: pus.SummaryReportRequest, obt: float) -> None:
-        self._send(pus.ScheduleSummaryReport(entries=tuple(
-            pus.ScheduleSummaryEntry(release_obt_s=e.tag_obt_s, request_id=pus.request_id_of(e.payload))  # type: ignore[arg-type]
-            for e in self.schedule.listing())), obt)
+        entries = tuple(pus.ScheduleSummaryEntry(release_obt_s=e.tag_obt_s,
+                                                 request_id=pus.request_id_of(e.payload))  # type: ignore[arg-type]
+                        for e in self.schedule.listing())
+        self._send(pus.ScheduleSummaryReport(entries=entries), obt)
 
     def _detail_report(self, cmd: pus.DetailReportRequest, obt: float) -> None:
-        self._send(pus.ScheduleDetailReport(activities=tuple(
-            pus.ScheduledActivity(release_obt_s=e.tag_obt_s, tc_packet=e.payload, ca_offset_s=e.ca_offset_s)  # type: ignore[arg-type]
-            for e in self.schedule.listing())), obt)
+        activities = tuple(pus.ScheduledActivity(release_obt_s=e.tag_obt_s, ca_offset_s=e.ca_offset_s,
+                                                 tc_packet=e.payload)  # type: ignore[arg-type]
+                           for e in self.schedule.listing())
+        self._send(pus.ScheduleDetailReport(activities=activities), obt)
 
     def _load_trajectory(self, cmd: pus.UploadNominalTrajectory, obt: float) -> None:
         traj = NominalTrajectory(

@@ -134,7 +134,8 @@ class XtceReader:
             return _string(ptype.find(NS + "StringDataEncoding"), bits)  # type: ignore[arg-type]
         if kind == "BinaryParameterType":
             enc = ptype.find(NS + "BinaryDataEncoding")
-            return bits.octets(int(enc.findtext(f"{NS}SizeInBits/{NS}FixedValue")) // 8)  # type: ignore[union-attr,arg-type]
+            size = enc.findtext(f"{NS}SizeInBits/{NS}FixedValue")  # type: ignore[union-attr]
+            return bits.octets(int(size) // 8)  # type: ignore[arg-type]
         if kind == "ArrayParameterType":
             element = self.types[ptype.get("arrayTypeRef")]
             dim = ptype.find(f"{NS}DimensionList/{NS}Dimension")
