@@ -91,6 +91,30 @@ def cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def obt_epoch_note() -> str:
+    """What OBT 0 is, for the XTCE time descriptions: the oscillator configuration's own words and default."""
+    from universe.config import OscillatorConfig
+
+    offset = OscillatorConfig.model_fields["initial_offset_s"]
+    return (f"OBT at the scenario epoch is the scenario's universe.oscillator.initial_offset_s (default "
+            f"{offset.default:,.0f} s: {offset.description}); from there OBT runs at the oscillator's rate "
+            "(drift_ppm, drift_rate_ppm_per_day), so ground maps it to UTC with its time correlation (service 9).")
+
+
+def cmd_dictionary(args: argparse.Namespace) -> int:
+    """Print the TM/TC dictionary as Markdown, or write its telemetry as XTCE 1.2 (``--xtce FILE``)."""
+    if args.xtce is None:
+        from contracts.dictionary_doc import markdown
+
+        sys.stdout.write(markdown())
+        return 0
+    from contracts.xtce import xtce_text
+
+    args.xtce.write_text(xtce_text(obt_epoch_note()), encoding="utf-8")
+    print(f"{args.xtce}: XTCE 1.2 of every telemetry packet of the dictionary")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every sub-command."""
     p = argparse.ArgumentParser(prog="flyby", description=__doc__)
@@ -114,6 +138,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--gif-size", type=int, default=256, help="side of the GIF images, px")
     d.add_argument("--gif-frame-ms", type=int, default=100, help="display time of each GIF frame, ms")
     d.set_defaults(func=cmd_render)
+    dic = sub.add_parser("dictionary", help="print the TM/TC dictionary as Markdown, or export its telemetry as XTCE")
+    dic.add_argument("--xtce", type=Path, default=None, metavar="FILE", help="write XTCE 1.2 (for Yamcs) to FILE")
+    dic.set_defaults(func=cmd_dictionary)
     from analysis.report import cmd_report
     from ground.tmquery import add_tm_arguments
 

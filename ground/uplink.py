@@ -6,35 +6,30 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from contracts import pus
+from contracts.dictionary import DICTIONARY
 from timeline.convert import ResolvedCommand
 from timeline.model import Command
 
 
 class UplinkError(ValueError):
-    """A timeline command has no telecommand (a registry entry without a PUS mapping)."""
+    """A timeline command has no telecommand, or ground cannot complete it."""
 
 
 def telecommand_of(command: Command, nominal: pus.UploadNominalTrajectory | None = None) -> pus.TcCommand:
-    """The telecommand that carries out one timeline command."""
-    a = command.args
-    match command.name:
-        case "set_mode":
-            return pus.SetMode(mode=pus.Mode[str(a["mode"])])
-        case "start_imaging":
-            return pus.StartImaging(period_s=a.get("period_s"))
-        case "stop_imaging":
-            return pus.StopImaging()
-        case "set_camera_cadence":
-            return pus.SetCameraCadence(period_s=a["period_s"], exposure_s=a["exposure_s"])
-        case "adjust_obt":
-            return pus.AdjustObt(delta_s=a["delta_s"])
-        case "report_time":
-            return pus.RequestTimeReports(count=a.get("count", 1))
-        case "upload_nominal_trajectory":
-            if nominal is None:
-                raise UplinkError("upload_nominal_trajectory: ground has no nominal trajectory to complete it from")
-            return nominal.model_copy(update={"ca_obt_s": a["ca_obt_s"], "ca_distance_km": a["ca_distance_km"]})
-    raise UplinkError(f"timeline command '{command.name}' has no telecommand mapping")
+    """The telecommand that carries out one timeline command (the dictionary's command of that name).
+
+    The fields the dictionary says ground fills come from ``nominal``, ground's own telecommand of that type.
+    """
+    cls = DICTIONARY.commands.get(command.name)
+    if cls is None:
+        raise UplinkError(f"timeline command '{command.name}' has no telecommand mapping")
+    fills = cls.COMMAND.ground_fills  # type: ignore[union-attr]
+    known = {}
+    if fills:
+        if not isinstance(nominal, cls):
+            raise UplinkError(f"{command.name}: ground has no {cls.__name__} to complete it from")
+        known = {name: getattr(nominal, name) for name in fills}
+    return cls.model_validate({**known, **command.args})  # type: ignore[return-value]
 
 
 def schedule_insert(resolved: list[ResolvedCommand], apid: int, next_seq: Callable[[], int],

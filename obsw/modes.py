@@ -26,18 +26,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
+from contracts.mode import Mode
 from obsw.config import ModesConfig
 from obsw.errors import IllegalTransition, InternalFault
-
-
-class Mode(StrEnum):
-    """The spacecraft's navigation modes."""
-
-    SAFE = "SAFE"
-    STANDBY = "STANDBY"
-    ACQUISITION = "ACQUISITION"
-    NOMINAL_TRACKING = "NOMINAL_TRACKING"
-    AUTONOMOUS_TRACKING = "AUTONOMOUS_TRACKING"
 
 
 class Cause(StrEnum):
@@ -229,8 +220,8 @@ class ModeManager:
         if target == self.mode:
             return None  # re-asserting the current mode is accepted and changes nothing
         if target not in COMMANDABLE[self.mode]:
-            allowed = tuple(sorted(m.value for m in COMMANDABLE[self.mode]))
-            raise IllegalTransition(self.mode.value, target.value, allowed)
+            allowed = tuple(sorted(m.name for m in COMMANDABLE[self.mode]))
+            raise IllegalTransition(self.mode.name, target.name, allowed)
         return self._enter(target, obt_s, Cause.COMMANDED, "")
 
     def _enter(self, target: Mode, obt_s: float, cause: Cause, detail: str) -> ModeEvent:

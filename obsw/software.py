@@ -22,17 +22,20 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from contracts import pus
 from contracts.messages import FrameRequest, StepReply, StepRequest
+from contracts.mode import Mode
 from obsw.config import ObswConfig
 from obsw.control import pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
 from obsw.imaging import Detections, los_body, process_frame
-from obsw.modes import CaEstimate, Cause, Mode, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
+from obsw.modes import CaEstimate, Cause, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.recognition import TrajectoryRecognizer
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
@@ -94,6 +97,23 @@ class FlightSoftware:
         self._clock_adjust_s: float | None = None
         self.last_reference: Reference | None = None
         self.pointing_error_est_rad: float | None = None
+        # what each telecommand does on board; a TC of the dictionary without an entry is refused
+        self._handlers: dict[type, Callable[[Any, float], None]] = {
+            pus.Ping: self._ping,
+            pus.UploadNominalTrajectory: self._load_trajectory,
+            pus.SetMode: self._set_mode,
+            pus.SetCameraCadence: self._set_cadence,
+            pus.StartImaging: self._start_imaging,
+            pus.StopImaging: self._stop_imaging,
+            pus.SetTimeReportRate: self._set_time_report_rate,
+            pus.AdjustObt: self._adjust_obt,
+            pus.RequestTimeReports: self._request_time_reports,
+            pus.InsertActivities: self._insert_activities,
+            pus.DeleteActivities: self._delete_activities,
+            pus.TimeShiftActivities: self._time_shift,
+            pus.SummaryReportRequest: self._summary_report,
+            pus.DetailReportRequest: self._detail_report,
+        }
 
     # -- public ------------------------------------------------------------------------------------------
     @property
@@ -180,64 +200,72 @@ class FlightSoftware:
         self._verify(rid, pus.Stage.COMPLETION, obt)
 
     def _execute(self, cmd: pus.TcCommand, obt: float) -> None:
-        if isinstance(cmd, pus.Ping):
-            self._send(pus.PingReply(), obt)
-        elif isinstance(cmd, pus.UploadNominalTrajectory):
-            self._load_trajectory(cmd, obt)
-        elif isinstance(cmd, pus.SetMode):
-            self._mode_event(self.modes.handle(SetModeTrigger(Mode(cmd.mode.name)), obt), obt)
-        elif isinstance(cmd, pus.SetCameraCadence):
-            self.frame_period_s, self.exposure_s = cmd.period_s, cmd.exposure_s
-        elif isinstance(cmd, pus.StartImaging):
-            if cmd.period_s is not None:
-                self.frame_period_s = cmd.period_s
-            self.imaging = True
-            self._next_frame_obt = obt
-        elif isinstance(cmd, pus.StopImaging):
-            self.imaging = False
-        elif isinstance(cmd, pus.SetTimeReportRate):
-            self._time_report_period = float(2**cmd.rate_exponent)
-            self._time_report_next = obt
-            self._time_reports_left = -1
-        elif isinstance(cmd, pus.AdjustObt):
-            # the oscillator hardware applies it before the next period; the jump is then seen and reported
-            self._clock_adjust_s = (self._clock_adjust_s or 0.0) + cmd.delta_s
-            self._log.append(f"OBT {obt:.3f} s: commanded clock adjustment of {cmd.delta_s:+.6f} s")
-        elif isinstance(cmd, pus.RequestTimeReports):
-            self._time_report_period = 1.0
-            self._time_report_next = obt
-            self._time_reports_left = cmd.count
-        elif isinstance(cmd, pus.InsertActivities):
-            reqs = [ScheduleRequest(request_id=pus.request_id_of(a.tc_packet).seq_count, tag_obt_s=a.release_obt_s,
-                                    payload=a.tc_packet, ca_offset_s=a.ca_offset_s) for a in cmd.activities]
-            if self.recognizer is not None and self.schedule.ca_anchor_obt_s is None:
-                self.schedule.reanchor_ca(self.trajectory.ca_time_obt_s)  # type: ignore[union-attr]
-            rejections = self.schedule.insert(obt, reqs)
-            if rejections:
-                raise CommandRejected(rejections[0].reason, "; ".join(
-                    f"activity {r.index}: {r.text}" for r in rejections))
-        elif isinstance(cmd, pus.DeleteActivities):
-            self.schedule.delete(Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids)))
-        elif isinstance(cmd, pus.TimeShiftActivities):
-            sel = None if not cmd.request_ids else Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids))
-            self.schedule.time_shift(obt, cmd.delta_s, sel)
-        elif isinstance(cmd, pus.SummaryReportRequest | pus.DetailReportRequest):
-            self._schedule_report(cmd, obt)
-        elif isinstance(cmd, pus.EnableSchedule | pus.DisableSchedule | pus.ResetSchedule):
-            raise CommandRejected(RejectReason.UNKNOWN_COMMAND, f"{type(cmd).__name__} is not supported on board")
-        else:
+        handler = self._handlers.get(type(cmd))
+        if handler is None:
             raise CommandRejected(RejectReason.UNKNOWN_COMMAND, f"{type(cmd).__name__} has no on-board handler")
+        handler(cmd, obt)
 
-    def _schedule_report(self, cmd: pus.TcCommand, obt: float) -> None:
-        entries = self.schedule.listing()
-        if isinstance(cmd, pus.SummaryReportRequest):
-            self._send(pus.ScheduleSummaryReport(entries=tuple(
-                pus.ScheduleSummaryEntry(release_obt_s=e.tag_obt_s, request_id=pus.request_id_of(e.payload))  # type: ignore[arg-type]
-                for e in entries)), obt)
-        else:
-            self._send(pus.ScheduleDetailReport(activities=tuple(
-                pus.ScheduledActivity(release_obt_s=e.tag_obt_s, tc_packet=e.payload, ca_offset_s=e.ca_offset_s)  # type: ignore[arg-type]
-                for e in entries)), obt)
+    def _ping(self, cmd: pus.Ping, obt: float) -> None:
+        self._send(pus.PingReply(), obt)
+
+    def _set_mode(self, cmd: pus.SetMode, obt: float) -> None:
+        self._mode_event(self.modes.handle(SetModeTrigger(cmd.mode), obt), obt)
+
+    def _set_cadence(self, cmd: pus.SetCameraCadence, obt: float) -> None:
+        self.frame_period_s, self.exposure_s = cmd.period_s, cmd.exposure_s
+
+    def _start_imaging(self, cmd: pus.StartImaging, obt: float) -> None:
+        if cmd.period_s is not None:
+            self.frame_period_s = cmd.period_s
+        self.imaging = True
+        self._next_frame_obt = obt
+
+    def _stop_imaging(self, cmd: pus.StopImaging, obt: float) -> None:
+        self.imaging = False
+
+    def _set_time_report_rate(self, cmd: pus.SetTimeReportRate, obt: float) -> None:
+        self._time_report_period = float(2**cmd.rate_exponent)
+        self._time_report_next = obt
+        self._time_reports_left = -1
+
+    def _adjust_obt(self, cmd: pus.AdjustObt, obt: float) -> None:
+        # the oscillator hardware applies it before the next period; the jump is then seen and reported
+        self._clock_adjust_s = (self._clock_adjust_s or 0.0) + cmd.delta_s
+        self._log.append(f"OBT {obt:.3f} s: commanded clock adjustment of {cmd.delta_s:+.6f} s")
+
+    def _request_time_reports(self, cmd: pus.RequestTimeReports, obt: float) -> None:
+        self._time_report_period = 1.0
+        self._time_report_next = obt
+        self._time_reports_left = cmd.count
+
+    def _insert_activities(self, cmd: pus.InsertActivities, obt: float) -> None:
+        reqs = [ScheduleRequest(request_id=pus.request_id_of(a.tc_packet).seq_count, tag_obt_s=a.release_obt_s,
+                                payload=a.tc_packet, ca_offset_s=a.ca_offset_s) for a in cmd.activities]
+        if self.recognizer is not None and self.schedule.ca_anchor_obt_s is None:
+            self.schedule.reanchor_ca(self.trajectory.ca_time_obt_s)  # type: ignore[union-attr]
+        rejections = self.schedule.insert(obt, reqs)
+        if rejections:
+            raise CommandRejected(rejections[0].reason, "; ".join(
+                f"activity {r.index}: {r.text}" for r in rejections))
+
+    def _delete_activities(self, cmd: pus.DeleteActivities, obt: float) -> None:
+        self.schedule.delete(Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids)))
+
+    def _time_shift(self, cmd: pus.TimeShiftActivities, obt: float) -> None:
+        sel = None if not cmd.request_ids else Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids))
+        self.schedule.time_shift(obt, cmd.delta_s, sel)
+
+    def _summary_report(self, cmd: pus.SummaryReportRequest, obt: float) -> None:
+        entries = tuple(pus.ScheduleSummaryEntry(release_obt_s=e.tag_obt_s,
+                                                 request_id=pus.request_id_of(e.payload))  # type: ignore[arg-type]
+                        for e in self.schedule.listing())
+        self._send(pus.ScheduleSummaryReport(entries=entries), obt)
+
+    def _detail_report(self, cmd: pus.DetailReportRequest, obt: float) -> None:
+        activities = tuple(pus.ScheduledActivity(release_obt_s=e.tag_obt_s, ca_offset_s=e.ca_offset_s,
+                                                 tc_packet=e.payload)  # type: ignore[arg-type]
+                           for e in self.schedule.listing())
+        self._send(pus.ScheduleDetailReport(activities=activities), obt)
 
     def _load_trajectory(self, cmd: pus.UploadNominalTrajectory, obt: float) -> None:
         traj = NominalTrajectory(
@@ -310,8 +338,8 @@ class FlightSoftware:
         if ev is None:
             return
         cause = ev.cause.value + (f": {ev.detail}" if ev.detail else "")
-        self._event(pus.ModeChangedEvent(from_mode=pus.Mode[ev.from_mode.name], to_mode=pus.Mode[ev.to_mode.name],
-                                         cause=cause[:255]), obt, f"mode {ev.from_mode.name} -> {ev.to_mode.name} ({cause})")
+        self._event(pus.ModeChangedEvent(from_mode=ev.from_mode, to_mode=ev.to_mode, cause=cause[:255]), obt,
+                    f"mode {ev.from_mode.name} -> {ev.to_mode.name} ({cause})")
         if ev.cause == Cause.TARGET_ACQUIRED and self.detections is not None and self.detections.dimorphos is not None:
             b = self.detections.dimorphos
             self._event(pus.TargetAcquiredEvent(centroid_x_px=b.centroid_col_row[0], centroid_y_px=b.centroid_col_row[1],
@@ -414,7 +442,7 @@ class FlightSoftware:
             if self.recognizer is not None:
                 best_t, best_d, mse = self.recognizer.best_grid()
             self._send(pus.Housekeeping(
-                mode=pus.Mode[self.modes.mode.name], q=tuple(float(c) for c in q),
+                mode=self.modes.mode, q=tuple(float(c) for c in q),
                 rate_rad_s=tuple(float(c) for c in omega), wheel_speed_rad_s=tuple(float(c) for c in wheel_speed),
                 wheel_momentum_nms=tuple(float(c) for c in wheel_h), pointing_error_rad=self.pointing_error_est_rad,
                 best_ca_obt_s=best_t, best_ca_distance_km=best_d, best_mse_rad2=mse), obt)

@@ -12,19 +12,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from copy import copy
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, ValidationError, field_validator, model_validator
+from pydantic import Field, ValidationError, create_model, field_validator, model_validator
 
+from contracts.dictionary import DICTIONARY
 from contracts.errors import FlybyError
+from contracts.mode import Mode
 from contracts.model import Frozen
+from contracts.packet import Packet
 
-MODES: tuple[str, ...] = ("SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING")
-"""On-board modes a command may request (DESIGN: mode manager)."""
-
-Mode = Literal["SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING"]
+MODES: tuple[str, ...] = tuple(m.name for m in Mode)
+"""On-board modes a command may request, by name."""
 
 
 class TimelineError(FlybyError):
@@ -131,57 +133,6 @@ class Timeline(Frozen):
         return self
 
 
-# Argument schemas of the standard commands. Each is a Frozen model: unknown arguments are refused.
-
-
-class NoArgs(Frozen):
-    """A command that takes no argument."""
-
-
-class SetModeArgs(Frozen):
-    """Arguments of set_mode."""
-
-    mode: Mode = Field(description="mode to enter")
-
-
-class StartImagingArgs(Frozen):
-    """Arguments of start_imaging."""
-
-    period_s: float = Field(gt=0, le=3600, description="time between frames, on-board s")
-
-
-class CameraCadenceArgs(Frozen):
-    """Arguments of set_camera_cadence."""
-
-    period_s: float = Field(gt=0, le=3600, description="time between frames, on-board s")
-    exposure_s: float = Field(gt=0, description="exposure time, s")
-
-    @model_validator(mode="after")
-    def _exposure_fits(self) -> CameraCadenceArgs:
-        if self.exposure_s > self.period_s:
-            raise ValueError(f"exposure_s ({self.exposure_s:g} s) must not exceed period_s ({self.period_s:g} s)")
-        return self
-
-
-class NominalTrajectoryArgs(Frozen):
-    """Arguments of upload_nominal_trajectory: the nominal C/A the trajectory recognition grid is centred on."""
-
-    ca_obt_s: float = Field(description="on-board time of the nominal closest approach, s")
-    ca_distance_km: float = Field(gt=0, description="nominal distance at closest approach, km")
-
-
-class TimeReportArgs(Frozen):
-    """Arguments of report_time."""
-
-    count: int = Field(1, ge=1, le=1000, description="number of PUS 9 time reports to send, one per second")
-
-
-class AdjustObtArgs(Frozen):
-    """Arguments of adjust_obt."""
-
-    delta_s: float = Field(ge=-86400.0, le=86400.0, description="step of the on-board clock, s")
-
-
 @dataclass(frozen=True)
 class CommandDefinition:
     """A command name, the schema of its arguments and what it does."""
@@ -261,20 +212,34 @@ class CommandRegistry:
             parsed = definition.arguments.model_validate(dict(args or {}))
         except ValidationError as exc:
             raise CommandError(name, [(_arg_field(e["loc"]), _arg_message(e)) for e in exc.errors()]) from None
-        return Command(name=name, args=parsed.model_dump())
+        return Command(name=name, args=parsed.model_dump(mode="json"))
 
 
-STANDARD_COMMANDS: tuple[CommandDefinition, ...] = (
-    CommandDefinition("set_mode", SetModeArgs, "request an on-board mode"),
-    CommandDefinition("start_imaging", StartImagingArgs, "start taking frames at a fixed period"),
-    CommandDefinition("stop_imaging", NoArgs, "stop taking frames"),
-    CommandDefinition("set_camera_cadence", CameraCadenceArgs, "change frame period and exposure"),
-    CommandDefinition(
-        "upload_nominal_trajectory", NominalTrajectoryArgs, "set the nominal C/A the recognition grid is built on"
-    ),
-    CommandDefinition("report_time", TimeReportArgs, "send PUS 9 time reports for ground time correlation"),
-    CommandDefinition("adjust_obt", AdjustObtArgs, "step the on-board clock (a commanded time correction)"),
+def _arguments(packet: type[Packet]) -> type[Frozen]:
+    """The argument model of the timeline command that sends ``packet``: the packet's fields with their checks,
+    less those ground fills, with the command's defaults. A complete command keeps the packet's cross-field rules
+    (a subclass); rules on ground-filled fields are checked when ground completes the telecommand."""
+    cmd = packet.COMMAND
+    assert cmd is not None
+    defaults = dict(cmd.defaults)
+    fields: dict[str, Any] = {}
+    for name, info in packet.model_fields.items():
+        if name in cmd.ground_fills:
+            continue
+        if name in defaults:
+            info = copy(info)
+            info.default = defaults[name]
+        fields[name] = (info.annotation, info)
+    base: type[Frozen] = Frozen if cmd.ground_fills else packet
+    title = "".join(part.title() for part in cmd.name.split("_"))
+    return create_model(f"{title}Args", __base__=base, __module__=__name__, **fields)
+
+
+STANDARD_COMMANDS: tuple[CommandDefinition, ...] = tuple(
+    CommandDefinition(p.COMMAND.name, _arguments(p), p.COMMAND.description)  # type: ignore[union-attr]
+    for p in DICTIONARY.commands.values()
 )
+"""The commands of the TM/TC dictionary that a timeline may contain, with the telecommands' bounds."""
 
 
 def default_registry() -> CommandRegistry:

@@ -39,7 +39,7 @@ GRAPH = {(a, b) for a, bs in COMMANDS.items() for b in bs} | {
 
 def test_table_graph_is_the_designed_graph() -> None:
     """The edges the table can produce are exactly the designed graph."""
-    assert {(a.value, b.value) for a, b in allowed_transitions()} == GRAPH
+    assert {(a.name, b.name) for a, b in allowed_transitions()} == GRAPH
 
 
 def test_nominal_flyby_sequence() -> None:
@@ -133,7 +133,7 @@ class ModesVersusReference(RuleBasedStateMachine):
     def _expect(self, trigger: object) -> str | None:
         """The reference: the next mode, or None when the command must be refused."""
         if isinstance(trigger, SetMode):
-            t = trigger.mode.value
+            t = trigger.mode.name
             return t if (t == self.mode or t in COMMANDS[self.mode]) else None
         if isinstance(trigger, (Fault, WheelSaturation)):
             return SAFE
@@ -154,15 +154,15 @@ class ModesVersusReference(RuleBasedStateMachine):
         if expected is None:
             with pytest.raises(IllegalTransition):
                 self.m.handle(trigger, self.obt)  # type: ignore[arg-type]
-            assert self.m.mode.value == before
+            assert self.m.mode.name == before
             return
         event = self.m.handle(trigger, self.obt)  # type: ignore[arg-type]
-        assert self.m.mode.value == expected
+        assert self.m.mode.name == expected
         if expected == before:
             assert event is None
         else:
             assert event is not None
-            assert (event.from_mode.value, event.to_mode.value, event.obt_s) == (before, expected, self.obt)
+            assert (event.from_mode.name, event.to_mode.name, event.obt_s) == (before, expected, self.obt)
             assert (before, expected) in GRAPH
         self.mode = expected
         if self.mode not in (NT, AT):
@@ -185,9 +185,9 @@ class ModesVersusReference(RuleBasedStateMachine):
         """A command (onwards, legal or any), a detection, a failure, a C/A estimate, or time moving (back too)."""
         onwards = sorted(COMMANDS[self.mode] - {SAFE, SB}) or sorted(COMMANDS[self.mode])
         if kind == "forward_command":
-            self._apply(SetMode(Mode(data.draw(st.sampled_from(onwards)))))
+            self._apply(SetMode(Mode[data.draw(st.sampled_from(onwards))]))
         elif kind == "legal_command":
-            self._apply(SetMode(Mode(data.draw(st.sampled_from(sorted(COMMANDS[self.mode]))))))
+            self._apply(SetMode(Mode[data.draw(st.sampled_from(sorted(COMMANDS[self.mode])))]))
         elif kind == "any_command":
             self._apply(SetMode(data.draw(st.sampled_from(list(Mode)))))
         elif kind == "detection":
@@ -205,7 +205,7 @@ class ModesVersusReference(RuleBasedStateMachine):
     def mode_is_legal(self) -> None:
         """The mode is always one of the five, and the reference's."""
         assert isinstance(self.m.mode, Mode)
-        assert self.m.mode.value == self.mode
+        assert self.m.mode.name == self.mode
 
 
 ModesVersusReference.TestCase.settings = settings(max_examples=80, stateful_step_count=30, deadline=None)

@@ -12,6 +12,7 @@ from contracts import pus
 from contracts.messages import FrameMeta, SensorData, StepRequest
 from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
+from obsw.errors import RejectReason
 from obsw.software import FlightSoftware
 from obsw.tracking import TrackingLoop
 from obsw.trajectory import NominalTrajectory
@@ -70,6 +71,23 @@ def test_corrupted_command_gets_an_acceptance_failure_and_the_next_is_still_serv
     assert failures[0].request_id == pus.RequestId(apid=APID, seq_count=7)
     assert len(_of(tm, pus.PingReply)) == 1
     assert {v.request_id.seq_count for v in _of(tm, pus.Verification) if v.success} == {8}
+
+
+@pytest.mark.parametrize("packet", [p for p in pus.DICTIONARY.packets if p.KIND == "TC"], ids=lambda p: p.__name__)
+def test_every_telecommand_is_executed_or_refused_as_unknown(packet: type) -> None:
+    """Each TC of the dictionary either has an on-board handler or, accepted, is refused at completion with
+    UNKNOWN_COMMAND and a rejection event; the three schedule switches (11,1..3) are the refused ones."""
+    fsw = _fsw()
+    handled = packet in fsw._handlers
+    assert handled == (packet not in (pus.EnableSchedule, pus.DisableSchedule, pus.ResetSchedule))
+    if handled:
+        return
+    reply = fsw.step(_request(0, OBT0, (pus.encode_tc(packet(), APID, 5),)), None)
+    tm = _tm(reply.downlink)
+    stages = [(v.stage, v.failure_code) for v in _of(tm, pus.Verification)]
+    code = 0x0100 + int(RejectReason.UNKNOWN_COMMAND)
+    assert stages == [(pus.Stage.ACCEPTANCE, None), (pus.Stage.COMPLETION, code)]
+    assert [e.failure_code for e in _of(tm, pus.CommandRejectedEvent)] == [code]
 
 
 def test_illegal_mode_command_is_refused_with_a_completion_failure_and_an_event() -> None:

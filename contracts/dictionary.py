@@ -1,0 +1,552 @@
+"""The mission's TM/TC dictionary: every packet, once, with its fields in wire order.
+
+Each declaration gives the packet's kind (``Telecommand`` or ``Report``), PUS service and subtype(s), name and
+description (the docstring), its fields with wire type (the annotation, ``contracts.wire``), unit, range and
+description (``field``), and for a telecommand the timeline command that sends it. Everything else is derived from
+here: the codec (``contracts.packet``, framed by ``contracts.pus``), the registries (``DICTIONARY``), the timeline
+commands and their argument models, ground's uplink, the on-board dispatch, the test strategies, the Markdown
+table and the XTCE export (``flyby dictionary``).
+
+Mission choices that are not a flat table: a verification report's subtype is its stage (+1 on failure) and only
+a failure carries a code and a reason; an event report's subtype is its severity and its first u16 the event id;
+the selected/all pairs of service 11 (7/15, 9/16, 12/17) differ by the request ids alone; a scheduled activity
+carries, as a mission extension, an optional offset from closest approach so the OBSW can re-anchor it when a new
+C/A estimate is accepted (its absolute release OBT is always present). The filter-based subtypes of service 11
+(6, 8, 11, 14) are not implemented: ground always names activities by request id. A time shift is an IEEE float64
+in seconds (exact, unlike a CUC relative time on the 2^-16 s grid).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Iterable
+from enum import IntEnum
+from typing import Annotated, Any, ClassVar
+
+from pydantic import AfterValidator, model_validator
+
+from contracts.mode import Mode  # noqa: F401  (re-exported: the packets' mode field)
+from contracts.packet import (
+    Constant,
+    Count,
+    Packet,
+    Record,
+    Report,
+    Telecommand,
+    TimelineCommand,
+    Validity,
+    declared,
+    field,
+)
+from contracts.packet_errors import MAX_APID, MAX_SEQ_COUNT, PacketError, RequestId
+from contracts.wire import (
+    F32,
+    F64,
+    MAX_TEXT_OCTETS,
+    PRIMARY_HEADER_LEN,
+    U8,
+    U16,
+    U32,
+    UINT16,
+    UINT8,
+    EmbeddedPacket,
+    Finite,
+    Mode8,
+    ObtS,
+    Rid,
+    Text,
+    UnitVector,
+    packet_len,
+)
+
+HK_SID = 1
+HK_WHEEL_SLOTS = 4
+MISSION_SERVICE = 200
+TC_SECONDARY_HEADER_LEN = 5
+CRC_LEN = 2
+MAX_LIST = 0xFFFF
+UNIT_TOLERANCE = 1e-9
+ORTHOGONAL_TOLERANCE = 1e-6
+
+
+class Severity(IntEnum):
+    """Event severity, which is also the service 5 subtype."""
+
+    INFO = 1
+    LOW = 2
+    MEDIUM = 3
+    HIGH = 4
+
+
+class Stage(IntEnum):
+    """Verification stage; the value is the service 1 success subtype, failure is value + 1."""
+
+    ACCEPTANCE = 1
+    START = 3
+    COMPLETION = 7
+
+
+class EventId(IntEnum):
+    """Event identifiers of service 5 (the u16 that opens an event report)."""
+
+    MODE_CHANGED = 1
+    TARGET_ACQUIRED = 2
+    TARGET_LOST = 3
+    WHEEL_SATURATION = 4
+    FAULT = 5
+    COMMAND_REJECTED = 6
+    CLOCK_JUMP = 7
+
+
+# Service 17 ---------------------------------------------------------------------------------------------
+
+
+class Ping(Telecommand, service=17, subtype=1):
+    """Are-you-alive."""
+
+
+class PingReply(Report, service=17, subtype=2):
+    """Are-you-alive connection report."""
+
+
+# Service 1 ----------------------------------------------------------------------------------------------
+
+_FAILURE = ("failure_code", "reason")
+
+
+class Verification(Report, service=1, subtypes={1: _FAILURE, 2: (), 3: _FAILURE, 4: (), 7: _FAILURE, 8: ()}):
+    """Verification report of one TC at one stage (acceptance, start or completion: subtype 1, 3, 7 on success,
+    2, 4, 8 on failure); a failure carries a code and a reason."""
+
+    OFF_WIRE: ClassVar[tuple[str, ...]] = ("stage",)
+    stage: Stage = field("acceptance, start or completion (the subtype)")
+    request_id: Rid = field("the TC this report is about")
+    failure_code: U16 | None = field("service 1 failure code (failure reports only)", default=None)
+    reason: Text = field("human-readable failure reason, UTF-8 (failure reports only)", default="")
+
+    @model_validator(mode="after")
+    def _reason_only_on_failure(self) -> Verification:
+        if self.failure_code is None and self.reason:
+            raise ValueError("reason: a success report carries no reason")
+        return self
+
+    @property
+    def success(self) -> bool:
+        """Whether this is a success report."""
+        return self.failure_code is None
+
+    def subservice(self) -> int:
+        """Success subtype of the stage, +1 for failure."""
+        return int(self.stage) + (0 if self.success else 1)
+
+    @classmethod
+    def implied(cls, subservice: int) -> dict[str, Any]:
+        """The stage is the subtype, rounded down to its success subtype."""
+        return {"stage": Stage(subservice - (subservice % 2 == 0))}
+
+    @classmethod
+    def failure_for(cls, error: PacketError, stage: Stage = Stage.ACCEPTANCE) -> Verification | None:
+        """The failure report answering a TC that raised ``error``; None if its request id could not be read."""
+        if error.request_id is None:
+            return None
+        reason = str(error).encode("utf-8")[:MAX_TEXT_OCTETS].decode("utf-8", errors="ignore")
+        return cls(stage=stage, request_id=error.request_id, failure_code=int(error.failure_code), reason=reason)
+
+
+# Service 3 ----------------------------------------------------------------------------------------------
+
+_NAN = math.nan
+
+
+class Housekeeping(Report, service=3, subtype=25):
+    """Housekeeping parameter report of the navigation chain; absent values are NaN with their flag cleared."""
+
+    sid: ClassVar[Constant] = Constant(UINT16, HK_SID, "structure id")
+    mode: Mode8 = field("current on-board mode")
+    flags: ClassVar[Validity] = Validity("validity: bit0 pointing error, bit1 best trajectory, bit2 best-grid MSE")
+    wheel_count: ClassVar[Count] = Count(UINT8, 1, HK_WHEEL_SLOTS, "number of wheels in use")
+    q: tuple[F32, F32, F32, F32] = field("estimated attitude body->inertial, scalar-last x y z w")
+    rate_rad_s: tuple[F32, F32, F32] = field("estimated body rate, x y z", "rad/s")
+    wheel_speed_rad_s: tuple[F32, ...] = field("wheel speeds", "rad/s", slots=HK_WHEEL_SLOTS, min_length=1,
+                                               max_length=HK_WHEEL_SLOTS)
+    wheel_momentum_nms: tuple[F32, ...] = field("wheel angular momenta", "N m s", slots=HK_WHEEL_SLOTS,
+                                                min_length=1, max_length=HK_WHEEL_SLOTS)
+    pointing_error_rad: F32 | None = field("estimated boresight-to-target angle", "rad", default=None, bit=0)
+    # float64: a float32 would only resolve 256 s at 2^32 s
+    best_ca_obt_s: F64 | None = field("C/A time of the best trajectory, OBT", "s", default=None, bit=1)
+    best_ca_distance_km: F32 | None = field("C/A distance of the best trajectory", "km", default=None, bit=1)
+    best_mse_rad2: F32 | None = field("best-grid mean square line-of-sight error", "rad^2", default=None, bit=2)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Housekeeping:
+        if len(self.wheel_speed_rad_s) != len(self.wheel_momentum_nms):
+            raise ValueError(
+                f"wheel_momentum_nms: {len(self.wheel_momentum_nms)} wheels but wheel_speed_rad_s has "
+                f"{len(self.wheel_speed_rad_s)}"
+            )
+        if (self.best_ca_obt_s is None) != (self.best_ca_distance_km is None):
+            raise ValueError("best_ca_distance_km: the best trajectory needs both C/A time and distance, or neither")
+        return self
+
+
+# Service 5 ----------------------------------------------------------------------------------------------
+
+
+def _severity(default: Severity) -> Any:
+    """The severity field of an event, with the event's usual severity."""
+    return field("event severity (the subtype)", default=default)
+
+
+class EventReport(Report):
+    """Base of the event reports: the subtype is the severity, the first u16 of the data the event id."""
+
+    OFF_WIRE: ClassVar[tuple[str, ...]] = ("severity",)
+    EVENT_ID: ClassVar[EventId]
+    severity: Severity = field("event severity (the subtype)")
+    event_id: ClassVar[Constant] = Constant(UINT16, None, "event identifier")
+
+    @classmethod
+    def __pydantic_init_subclass__(cls, **kwargs: Any) -> None:
+        super().__pydantic_init_subclass__(service=5, subtypes=tuple(int(s) for s in Severity), **kwargs)
+
+    def subservice(self) -> int:
+        """The severity."""
+        return int(self.severity)
+
+    @classmethod
+    def implied(cls, subservice: int) -> dict[str, Any]:
+        """The severity is the subtype."""
+        return {"severity": subservice}
+
+
+class ModeChangedEvent(EventReport):
+    """The mode manager made a transition: from, to, and why."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.MODE_CHANGED
+    severity: Severity = _severity(Severity.INFO)
+    from_mode: Mode8 = field("mode before the transition")
+    to_mode: Mode8 = field("mode after the transition")
+    cause: Text = field("what triggered the transition (command, event, time)", default="")
+
+
+class TargetAcquiredEvent(EventReport):
+    """The imaging chain found the target: centroid and area in the processed (binned) image."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.TARGET_ACQUIRED
+    severity: Severity = _severity(Severity.INFO)
+    centroid_x_px: F32 = field("centroid column in the processed image", "px")
+    centroid_y_px: F32 = field("centroid row in the processed image", "px")
+    area_px: U32 = field("area of the target region", "px")
+
+
+class TargetLostEvent(EventReport):
+    """The target has not been seen for longer than the timeout."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.TARGET_LOST
+    severity: Severity = _severity(Severity.MEDIUM)
+    unseen_s: F32 = field("time since the target was last seen, OBT", "s", ge=0)
+
+
+class WheelSaturationEvent(EventReport):
+    """A reaction wheel reached its momentum limit."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.WHEEL_SATURATION
+    severity: Severity = _severity(Severity.MEDIUM)
+    wheel: U8 = field("wheel index")
+    momentum_nms: F32 = field("wheel momentum at saturation", "N m s")
+
+
+class FaultEvent(EventReport):
+    """An on-board fault was detected."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.FAULT
+    severity: Severity = _severity(Severity.HIGH)
+    fault_code: U16 = field("OBSW-defined fault code")
+    reason: Text = field("what failed", default="")
+
+
+class ClockJumpEvent(EventReport):
+    """On-board time stepped between two control periods by more than the jump threshold."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.CLOCK_JUMP
+    severity: Severity = _severity(Severity.MEDIUM)
+    step_s: Finite = field("OBT step beyond the control period (negative: backwards)", "s")
+
+
+class CommandRejectedEvent(EventReport):
+    """A TC was rejected (its service 1 failure report carries the reason text)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.COMMAND_REJECTED
+    severity: Severity = _severity(Severity.LOW)
+    request_id: Rid = field("the rejected TC")
+    failure_code: U16 = field("service 1 failure code of the rejection")
+
+
+# Service 9 ----------------------------------------------------------------------------------------------
+
+
+class SetTimeReportRate(Telecommand, service=9, subtype=1):
+    """Set the time report generation rate: one report every 2^rate_exponent s."""
+
+    rate_exponent: U8 = field("one report every 2^n s")
+
+
+class TimeReport(Report, service=9, subtype=2):
+    """CUC time report: the OBT latched at the time reference instant."""
+
+    rate_exponent: U8 = field("current generation rate, one report every 2^n s", default=0)
+    obt_s: ObtS = field("on-board time of the report (carried on the 2^-16 s CUC grid)", "s")
+
+
+# Service 11 ---------------------------------------------------------------------------------------------
+
+
+def _check_tc_packet(packet: bytes) -> bytes:
+    """Accept one complete space packet of type TC (its contents are decoded when it is released)."""
+    if len(packet) < PRIMARY_HEADER_LEN + TC_SECONDARY_HEADER_LEN + CRC_LEN:
+        raise ValueError(f"{len(packet)} octets is shorter than the smallest PUS TC")
+    if not packet[0] & 0x10:
+        raise ValueError("is a telemetry packet, a telecommand is needed")
+    if packet_len(packet) != len(packet):
+        raise ValueError(f"length field says {packet_len(packet)} octets, {len(packet)} given")
+    return packet
+
+
+TcPacket = Annotated[bytes, AfterValidator(_check_tc_packet), EmbeddedPacket()]
+
+
+class ScheduledActivity(Record):
+    """One entry of the time-based schedule: a complete TC packet and its release OBT."""
+
+    tag_kind: ClassVar[Validity] = Validity("tag kind: 0 absolute, 1 C/A-relative (the C/A offset follows)", omit=True)
+    release_obt_s: ObtS = field("release time, OBT (carried on the 2^-16 s CUC grid)", "s")
+    ca_offset_s: Finite | None = field("offset of the release from closest approach, if the activity follows the "
+                                       "C/A estimate", "s", default=None, bit=0)
+    tc_packet: TcPacket = field("the complete TC packet")
+
+    @property
+    def request_id(self) -> RequestId:
+        """The request id of the wrapped TC."""
+        w0, w1 = struct.unpack_from(">HH", self.tc_packet)
+        return RequestId(apid=w0 & MAX_APID, seq_count=w1 & MAX_SEQ_COUNT)
+
+
+class ScheduleSummaryEntry(Record):
+    """One line of a schedule summary: release OBT and the request id of the scheduled TC."""
+
+    release_obt_s: ObtS = field("release time, OBT", "s")
+    request_id: Rid = field("request id of the scheduled TC")
+
+
+_IDS = "request ids of the scheduled TCs"
+
+
+class EnableSchedule(Telecommand, service=11, subtype=1):
+    """Enable the release of scheduled activities."""
+
+
+class DisableSchedule(Telecommand, service=11, subtype=2):
+    """Disable the release of scheduled activities (they stay in the schedule)."""
+
+
+class ResetSchedule(Telecommand, service=11, subtype=3):
+    """Delete every scheduled activity."""
+
+
+class InsertActivities(Telecommand, service=11, subtype=4):
+    """Insert activities into the time-based schedule."""
+
+    activities: tuple[ScheduledActivity, ...] = field("the activities", min_length=1, max_length=MAX_LIST)
+
+
+class DeleteActivities(Telecommand, service=11, subtype=5):
+    """Delete the activities whose TCs have these request ids."""
+
+    request_ids: tuple[Rid, ...] = field(_IDS, min_length=1, max_length=MAX_LIST)
+
+
+class TimeShiftActivities(Telecommand, service=11, subtypes={7: (), 15: ("request_ids",)}):
+    """Time-shift the named activities (subtype 7), or all of them (15, no request ids)."""
+
+    delta_s: Finite = field("shift added to each release time (negative: earlier)", "s")
+    request_ids: tuple[Rid, ...] | None = field(_IDS + " (subtype 7 only)", default=None, min_length=1,
+                                               max_length=MAX_LIST)
+
+
+class DetailReportRequest(Telecommand, service=11, subtypes={9: (), 16: ("request_ids",)}):
+    """Detail-report the named activities (subtype 9), or all of them (16, no request ids)."""
+
+    request_ids: tuple[Rid, ...] | None = field(_IDS + " (subtype 9 only)", default=None, min_length=1,
+                                               max_length=MAX_LIST)
+
+
+class SummaryReportRequest(Telecommand, service=11, subtypes={12: (), 17: ("request_ids",)}):
+    """Summary-report the named activities (subtype 12), or all of them (17, no request ids)."""
+
+    request_ids: tuple[Rid, ...] | None = field(_IDS + " (subtype 12 only)", default=None, min_length=1,
+                                               max_length=MAX_LIST)
+
+
+class ScheduleDetailReport(Report, service=11, subtype=10):
+    """The scheduled activities in full, in release order."""
+
+    activities: tuple[ScheduledActivity, ...] = field("the activities", default=(), max_length=MAX_LIST)
+
+
+class ScheduleSummaryReport(Report, service=11, subtype=13):
+    """Release time and request id of the scheduled activities, in release order."""
+
+    entries: tuple[ScheduleSummaryEntry, ...] = field("the activities", default=(), max_length=MAX_LIST)
+
+
+# Service 200 (mission) ----------------------------------------------------------------------------------
+
+
+class SetMode(Telecommand, service=MISSION_SERVICE, subtype=1,
+              command=TimelineCommand("set_mode", "request an on-board mode")):
+    """Request an on-board mode."""
+
+    mode: Mode8 = field("mode to enter")
+
+
+class UploadNominalTrajectory(
+    Telecommand, service=MISSION_SERVICE, subtype=2,
+    command=TimelineCommand(
+        "upload_nominal_trajectory", "set the nominal C/A the recognition grid is built on",
+        ground_fills=("speed_km_s", "approach_direction", "ca_direction", "sigma_ca_time_s", "sigma_ca_distance_km"),
+    ),
+):
+    """The nominal flyby the recognition grid is built around."""
+
+    ca_obt_s: Finite = field("nominal closest approach time, OBT", "s", ge=0)
+    ca_distance_km: Finite = field("nominal distance at closest approach", "km", gt=0)
+    speed_km_s: Finite = field("relative speed", "km/s", gt=0)
+    approach_direction: UnitVector = field("unit vector of the relative velocity, inertial frame")
+    ca_direction: UnitVector = field("unit vector target -> spacecraft at closest approach, inertial frame")
+    sigma_ca_time_s: Finite = field("one-sigma uncertainty of the C/A time", "s", ge=0)
+    sigma_ca_distance_km: Finite = field("one-sigma uncertainty of the C/A distance", "km", ge=0)
+
+    @model_validator(mode="after")
+    def _geometry(self) -> UploadNominalTrajectory:
+        for name in ("approach_direction", "ca_direction"):
+            v = getattr(self, name)
+            norm = math.sqrt(sum(c * c for c in v))
+            if abs(norm - 1.0) > UNIT_TOLERANCE:
+                raise ValueError(f"{name}: norm {norm!r} is not 1 within {UNIT_TOLERANCE:g}")
+        dot = sum(a * b for a, b in zip(self.approach_direction, self.ca_direction, strict=True))
+        if abs(dot) > ORTHOGONAL_TOLERANCE:
+            raise ValueError(
+                f"ca_direction: must be perpendicular to approach_direction at closest approach, dot = {dot:.3g}"
+            )
+        return self
+
+
+class SetCameraCadence(Telecommand, service=MISSION_SERVICE, subtype=3,
+                       command=TimelineCommand("set_camera_cadence", "change frame period and exposure")):
+    """Change the frame period and exposure."""
+
+    period_s: Finite = field("time between frames, OBT", "s", gt=0)
+    exposure_s: Finite = field("exposure time", "s", gt=0)
+
+    @model_validator(mode="after")
+    def _exposure_fits(self) -> SetCameraCadence:
+        if self.exposure_s > self.period_s:
+            raise ValueError(f"exposure_s ({self.exposure_s:g} s) must not exceed period_s ({self.period_s:g} s)")
+        return self
+
+
+class StartImaging(Telecommand, service=MISSION_SERVICE, subtype=4,
+                   command=TimelineCommand("start_imaging", "start taking frames at a fixed period")):
+    """Start taking frames, at ``period_s`` or at the current cadence when it is absent."""
+
+    flags: ClassVar[Validity] = Validity("bit0: period_s present")
+    period_s: Finite | None = field("time between frames, OBT", "s", default=None, gt=0, bit=0)
+
+
+class StopImaging(Telecommand, service=MISSION_SERVICE, subtype=5,
+                  command=TimelineCommand("stop_imaging", "stop taking frames")):
+    """Stop taking frames."""
+
+
+class RequestTimeReports(
+    Telecommand, service=MISSION_SERVICE, subtype=6,
+    command=TimelineCommand("report_time", "send PUS 9 time reports for ground time correlation",
+                            defaults=(("count", 1),)),
+):
+    """Send ``count`` service 9 time reports, one per second, for ground time correlation."""
+
+    count: U16 = field("number of time reports", ge=1)
+
+
+class AdjustObt(Telecommand, service=MISSION_SERVICE, subtype=7,
+                command=TimelineCommand("adjust_obt", "step the on-board clock (a commanded time correction)")):
+    """Step the on-board clock by ``delta_s`` (a commanded time correction; reported as a clock jump)."""
+
+    delta_s: Finite = field("OBT step (negative: backwards)", "s", ge=-86400.0, le=86400.0)
+
+
+class NavigationReport(Report, service=MISSION_SERVICE, subtype=130):
+    """What the imaging chain made of one frame: centroids (binned px), area, measured line of sight; absent values
+    are 0 with their flag cleared."""
+
+    frame_id: U32 = field("frame counter")
+    flags: ClassVar[Validity] = Validity("validity: bit0 Dimorphos centroid, bit1 Didymos centroid, bit2 line of "
+                                         "sight", fill=0.0)
+    dimorphos_col_row: tuple[F32, F32] | None = field("Dimorphos centroid, column row", "binned px", default=None,
+                                                      bit=0)
+    didymos_col_row: tuple[F32, F32] | None = field("Didymos centroid, column row", "binned px", default=None, bit=1)
+    dimorphos_area_px: U32 = field("Dimorphos area", "binned px", default=0)
+    los_inertial: UnitVector | None = field("measured line of sight to Dimorphos, inertial", default=None, bit=2)
+
+
+class EstimateReport(Report, service=MISSION_SERVICE, subtype=131):
+    """The on-board C/A estimates: best grid candidate and the continuous (least-squares) estimate; absent values
+    are NaN with their flag cleared."""
+
+    n_measurements: U32 = field("line-of-sight measurements used")
+    flags: ClassVar[Validity] = Validity("validity: bit0 grid estimate, bit1 continuous estimate")
+    grid_ca_obt_s: Finite | None = field("grid C/A time, OBT", "s", default=None, bit=0)
+    grid_ca_distance_km: Finite | None = field("grid C/A distance", "km", default=None, bit=0)
+    grid_mse_rad2: Finite | None = field("grid mean square line-of-sight error", "rad^2", default=None, bit=0)
+    continuous_ca_obt_s: Finite | None = field("continuous C/A time, OBT", "s", default=None, bit=1)
+    continuous_ca_distance_km: Finite | None = field("continuous C/A distance", "km", default=None, bit=1)
+    continuous_sigma_time_s: Finite | None = field("one-sigma of the continuous C/A time", "s", default=None, bit=1)
+    continuous_sigma_distance_km: Finite | None = field("one-sigma of the continuous C/A distance", "km",
+                                                        default=None, bit=1)
+
+    @model_validator(mode="after")
+    def _complete(self) -> EstimateReport:
+        grid = (self.grid_ca_obt_s, self.grid_ca_distance_km, self.grid_mse_rad2)
+        cont = (self.continuous_ca_obt_s, self.continuous_ca_distance_km, self.continuous_sigma_time_s,
+                self.continuous_sigma_distance_km)
+        for name, group in (("grid_ca_obt_s", grid), ("continuous_ca_obt_s", cont)):
+            if any(v is None for v in group) and any(v is not None for v in group):
+                raise ValueError(f"{name}: an estimate needs all of its values, or none")
+        return self
+
+
+# ---------------------------------------------------------------------------------------------- registries
+
+
+class Dictionary:
+    """The declared packets and the look-ups derived from them."""
+
+    def __init__(self, packets: Iterable[type[Packet]]) -> None:
+        self.packets = tuple(packets)
+        self.by_name = {p.__name__: p for p in self.packets}
+        self.telecommands = {(p.SERVICE, s): p for p in self.packets if p.KIND == "TC" for s in p.SUBTYPES}
+        self.reports = {(p.SERVICE, s): p for p in self.packets
+                        if p.KIND == "TM" and not issubclass(p, EventReport) for s in p.SUBTYPES}
+        self.events = {int(p.EVENT_ID): p for p in self.packets if issubclass(p, EventReport)}
+        self.commands = {p.COMMAND.name: p for p in self.packets if p.COMMAND is not None}
+        if len(self.by_name) != len(self.packets):
+            raise ValueError("two packets of the dictionary share a name")
+
+    def services(self, kind: str) -> frozenset[int]:
+        """The services that have packets of ``kind`` ('TC' or 'TM')."""
+        return frozenset(p.SERVICE for p in self.packets if p.KIND == kind)
+
+
+DICTIONARY = Dictionary(declared())
+"""Every packet of the mission, in declaration order."""
