@@ -269,6 +269,22 @@ def split_packets(stream: bytes) -> list[bytes]:
     return out
 
 
+def complete_packets(stream: bytes) -> tuple[list[bytes], int]:
+    """Cut a stream of concatenated space packets; return the packets and the octets of an incomplete last one.
+
+    Like ``split_packets``, but a stream cut short (a node killed mid-write) keeps every complete packet.
+    """
+    out: list[bytes] = []
+    pos, n = 0, len(stream)
+    while n - pos >= PRIMARY_HEADER_LEN:
+        size = _packet_len(stream, pos)
+        if pos + size > n:
+            break
+        out.append(bytes(stream[pos : pos + size]))
+        pos += size
+    return out, n - pos
+
+
 def request_id_of(packet: bytes) -> RequestId:
     """The request id (APID and sequence count) of a TC packet, from its first 4 octets."""
     if len(packet) < 4:

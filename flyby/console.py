@@ -17,6 +17,7 @@ from pathlib import Path
 import yaml
 import zenoh
 
+from contracts import pus
 from contracts.bus import Keys, session_config
 from contracts.exitcodes import ExitCode
 from contracts.clock import WallClock
@@ -38,35 +39,35 @@ def _key_value(items: list[str]) -> dict[str, object]:
     return out
 
 
-def _print_line(line: TmLine, stream=sys.stdout) -> None:  # type: ignore[no-untyped-def]
-    print(f"UTC {line.utc_s:9.2f} s  OBT {line.obt_s:14.3f} s  {line.kind:<12} {line.text}", file=stream, flush=True)
+def _print_line(line: TmLine, known_utc: bool = True) -> None:
+    utc = f"{line.utc_s:9.2f} s" if known_utc else "        - "
+    print(f"UTC {utc}  OBT {line.obt_s:14.3f} s  {line.kind:<12} {line.text}", flush=True)
 
 
 def replay(run_dir: Path) -> int:
-    """Print the operator lines of a recorded run, from its archive (with each packet's receipt time)."""
-    import sqlite3
-
-    from contracts import pus
+    """Print the operator lines of a recorded run, from its archive (with each packet's receipt time); from tm.bin,
+    without receipt times, if the archive is damaged (then exit 2 after printing, so a script sees the damage)."""
+    from ground.archive import ArchiveError
     from ground.node import tm_line
     from ground.segment import ReceivedPacket
+    from ground.tmquery import TmQueryError, run_archive
 
-    db_path = run_dir / "archive.sqlite"
-    if not db_path.exists():
-        print(f"{run_dir}: no archive.sqlite: not a run folder", file=sys.stderr)
-        return EXIT_USAGE
-    db = sqlite3.connect(f"file:{db_path}?mode=ro", uri=True)
     try:
-        for receipt, raw in db.execute("SELECT receipt_utc_s, raw FROM packets WHERE error IS NULL ORDER BY id"):
-            header, report = pus.decode_tm(bytes(raw))
-            line = tm_line(ReceivedPacket(bytes(raw), receipt, header, report, None))
-            if line is not None:
-                _print_line(line)
+        with run_archive(run_dir) as archive:
+            if archive.damage:
+                print(f"flyby ground: {archive.damage}", file=sys.stderr)
+            for receipt, raw in archive.decoded_packets():
+                header, report = pus.decode_tm(raw)
+                line = tm_line(ReceivedPacket(raw, receipt, header, report, None))
+                if line is not None:
+                    _print_line(line, known_utc=archive.damage is None)
+            damaged = archive.damage is not None
+    except (TmQueryError, ArchiveError) as exc:
+        print(f"flyby ground: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     except BrokenPipeError:  # the reader (head, less) has seen enough
-        pass
-    finally:
-        db.close()
-    return EXIT_OK
-
+        return EXIT_OK
+    return EXIT_USAGE if damaged else EXIT_OK
 
 def console(args: argparse.Namespace) -> int:
     """Run the ``flyby ground`` command."""

@@ -175,12 +175,51 @@ class Archive:
         self._anomalies: list[tuple[Any, ...]] = []
         self._raw: list[bytes] = []
         self._closed = False
+        self._read_only = False
+        self.damage: str | None = None  # set by a reader that had to fall back on tm.bin
+
+    @classmethod
+    def read_only(cls, path: str | Path) -> Archive:
+        """Open an existing archive for reading only: nothing is ever written beside it (no journal, no -shm file),
+        and a file that is not an intact archive raises ArchiveError saying what is wrong with it."""
+        self = cls.__new__(cls)
+        self.path = Path(path)
+        self.tm_bin_path = self.path.with_name("tm.bin")
+        self.batch_size = 1
+        if not self.path.is_file():
+            raise ArchiveError(f"{self.path}: no such file")
+        if self.path.stat().st_size == 0:
+            raise ArchiveError(f"{self.path}: empty file (0 octets): the ground node never wrote it")
+        # immutable: SQLite neither locks nor creates a -wal/-shm file, so the run folder is left as it was
+        self._db = sqlite3.connect(f"file:{self.path.resolve()}?mode=ro&immutable=1", uri=True)
+        try:
+            tables = {n for (n,) in self._db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+            missing = {"packets", "parameters", "sequence_anomalies"} - tables
+            if missing:
+                raise ArchiveError(f"{self.path}: not a telemetry archive (no table {', '.join(sorted(missing))})")
+            self._db.execute("SELECT COUNT(*) FROM packets").fetchone()
+        except sqlite3.DatabaseError as exc:
+            self._db.close()
+            raise ArchiveError(f"{self.path}: damaged database: {exc}") from None
+        except ArchiveError:
+            self._db.close()
+            raise
+        self._bin = None
+        self._next_id = 0
+        self._last = {}
+        self._packets, self._params, self._anomalies, self._raw = [], [], [], []
+        self._closed = False
+        self._read_only = True
+        self.damage = None
+        return self
 
     # ------------------------------------------------------------------------------------------------ writing
 
     def store(self, raw: bytes, receipt_utc_s: float) -> StoreResult:
         """Archive one TM packet received at ``receipt_utc_s`` (UTC s); bad packets are kept raw with their error."""
         self._check_open()
+        if self._read_only:
+            raise ArchiveError(f"archive {self.path} is open for reading only")
         if not isinstance(receipt_utc_s, (int, float)) or not math.isfinite(receipt_utc_s):
             raise ArchiveError(f"receipt_utc_s must be a finite number, got {receipt_utc_s!r}")
         raw = bytes(raw)
@@ -248,6 +287,7 @@ class Archive:
         self._check_open()
         if not self._packets:
             return
+        assert self._bin is not None  # a read-only archive never queues packets
         self._bin.write(b"".join(self._raw))
         self._bin.flush()
         with self._db:
@@ -267,7 +307,8 @@ class Archive:
             self.flush()
         finally:
             self._closed = True
-            self._bin.close()
+            if self._bin is not None:
+                self._bin.close()
             self._db.close()
 
     def __enter__(self) -> Archive:
@@ -293,6 +334,17 @@ class Archive:
             (parameter, obt_from, obt_to),
         )
         return [Sample(*row) for row in rows]
+
+    def decoded_packets(self) -> list[tuple[float, bytes]]:
+        """(receipt UTC s, raw octets) of every decoded packet, in arrival order."""
+        self.flush()
+        rows = self._db.execute("SELECT receipt_utc_s, raw FROM packets WHERE error IS NULL ORDER BY id")
+        return [(t, bytes(r)) for t, r in rows]
+
+    def raw_packets(self) -> list[bytes]:
+        """Every packet as received, in arrival order (undecodable ones included)."""
+        self.flush()
+        return [bytes(r) for (r,) in self._db.execute("SELECT raw FROM packets ORDER BY id")]
 
     def parameter_names(self) -> list[str]:
         """Every parameter name present in the archive, sorted."""
