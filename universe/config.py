@@ -24,8 +24,14 @@ class FlybyConfig(Config):
         description="true time of closest approach, s after the scenario epoch "
         "(LICIACube flew by about 168 s after the DART impact)",
     )
-    ca_distance_km: float = Field(55.0, gt=0, description="true C/A distance, km (paper: 55 km)")
-    speed_km_s: float = Field(7.0, gt=0, description="relative speed, km/s (paper: ~7 km/s)")
+    ca_distance_km: float = Field(
+        55.0, gt=0, le=1.0e6, description="true C/A distance, km (paper: 55 km; up to a million km, where Didymos is "
+        "a fraction of a pixel: farther is outside what this emulator models)"
+    )
+    speed_km_s: float = Field(
+        7.0, gt=0, le=100.0, description="relative speed, km/s (paper: ~7 km/s; at most 100 km/s, faster than any "
+        "heliocentric encounter)"
+    )
     approach_direction: Vec3 = Field(
         (1.0, 0.0, 0.0),
         description="direction of the spacecraft velocity relative to Didymos, inertial frame (normalised)",
