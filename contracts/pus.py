@@ -582,9 +582,6 @@ class EventReport(_Payload):
         return b""
 
 
-_Event = EventReport  # earlier name, kept for code written against it
-
-
 class ModeChangedEvent(EventReport):
     """The mode manager made a transition: from, to, and why."""
 

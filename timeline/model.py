@@ -22,7 +22,7 @@ from contracts.errors import FlybyError
 from contracts.model import Frozen
 
 MODES: tuple[str, ...] = ("SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING")
-"""On-board modes a command may request (DESIGN: mode manager)."""
+"""On-board modes a command may request: the modes of the on-board mode manager (``obsw.modes``)."""
 
 Mode = Literal["SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING"]
 

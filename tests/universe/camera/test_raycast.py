@@ -6,27 +6,28 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from universe.camera import Body, _body_box, _BodyCaster, _BodyView, focal_length_px, principal_point_px
+from universe.camera import Body, focal_length_px, principal_point_px
+from universe.camera.bodies import BodyCaster, BodyView, body_box
+from universe.camera.raycast import cast_body
 from universe.config import CameraConfig
-from universe.raycast import cast_body
 from universe.shapes import ShapeModel
 
 CFG = CameraConfig(phase_slope_mag_deg=0.0)
 F = focal_length_px(CFG)
 CX, CY = principal_point_px(CFG)
-SPREAD = {4: 1.7, 2: 3.0}  # camera._SMOOTH_SPREAD_CELLS: the thresholds the camera uses
+SPREAD = {4: 1.7, 2: 3.0}  # bodies._SMOOTH_SPREAD_CELLS: the thresholds the camera uses
 
 
-def caster_for(body: Body, centre_c: np.ndarray, sun_c: np.ndarray) -> tuple[_BodyCaster, tuple[int, int, int, int]]:
+def caster_for(body: Body, centre_c: np.ndarray, sun_c: np.ndarray) -> tuple[BodyCaster, tuple[int, int, int, int]]:
     """The camera's per-frame tables of ``body`` seen at ``centre_c`` (camera frame, camera axes = inertial)."""
     r_max = body.radius_m * body.shape.max_radius()
-    box = _body_box(centre_c, r_max, F, CX, CY, CFG.resolution_px, 2)
+    box = body_box(centre_c, r_max, F, CX, CY, CFG.resolution_px, 2)
     assert box is not None
-    view = _BodyView(0, body, centre_c, r_max, box, (0.0, 0.0))
-    return _BodyCaster(view, np.eye(3), sun_c, CFG, F, CX, CY), box
+    view = BodyView(0, body, centre_c, r_max, box, (0.0, 0.0))
+    return BodyCaster(view, np.eye(3), sun_c, CFG, F, CX, CY), box
 
 
-def cast(caster: _BodyCaster, box: tuple[int, int, int, int], step: int, window: bool = True):
+def cast(caster: BodyCaster, box: tuple[int, int, int, int], step: int, window: bool = True):
     """Depth (m, inf off the body; 0 where interpolated outside the window) and signal (e-/s) over ``box``."""
     r0, r1, c0, c1 = box
     depth = np.full((r1 - r0, c1 - c0), np.inf, dtype=np.float32)
@@ -80,7 +81,8 @@ def test_sphere_depth_and_shading_match_the_closed_form(step: int, offset_px: tu
 def test_quadtree_matches_casting_every_pixel_on_an_irregular_body(seed: int, diameter_px: float) -> None:
     """An irregular body: the 2 px and 4 px quadtrees hit the same pixels as casting every pixel, with the same light
     to within a few per cent of the peak per pixel and 0.5 % in total, and the same depth within a pixel's width but
-    for a few grazing rays on the limb (where either may find a surface behind a bump: see ``universe.raycast``)."""
+    for a few grazing rays on the limb (where either may find a surface behind a bump: see
+    ``universe.camera.raycast``)."""
     rng = np.random.default_rng(seed)
     radius = 390.0
     rng_m = 2 * radius * F / diameter_px

@@ -2,13 +2,13 @@
 
 Theory of operation: a body is described, per frame, in its view frame (e3 from the body centre to the camera) by
 a table of radius and view-frame normal over the stereographic coordinates of the direction from the centre
-(``universe.camera._shape_table``) and by its limb: the largest perspective-projected radius per image polar-angle
-bin (``universe.camera._limb_radius``). A ray through a pixel centre is tested against the limb first (outside it
-the ray misses), then its front intersection with ``|x| = r(x / |x|)`` is found by safeguarded Newton steps along
-the ray, bilinear look-ups in the table giving the radius and the normal, and the lunar-Lambert law gives the
-signal there. Each ray stops as soon as it is on the surface, which array code could not do without compacting
-its arrays every step. ``cast_body`` runs the quadtree over a body's box (see its docstring), so that only the
-cells where the shading is not smooth are cast at every pixel.
+(``universe.camera.bodies._shape_table``) and by its limb: the largest perspective-projected radius per image
+polar-angle bin (``universe.camera.bodies._limb_radius``). A ray through a pixel centre is tested against the limb
+first (outside it the ray misses), then its front intersection with ``|x| = r(x / |x|)`` is found by safeguarded
+Newton steps along the ray, bilinear look-ups in the table giving the radius and the normal, and the
+lunar-Lambert law gives the signal there. Each ray stops as soon as it is on the surface, which array code could
+not do without compacting its arrays every step. ``cast_body`` runs the quadtree over a body's box (see its
+docstring), so that only the cells where the shading is not smooth are cast at every pixel.
 
 Known limit: a ray grazing the limb through a bump can pass the bump's front surface between two Newton steps and
 stop on the surface behind it: its depth is then too far (by up to the body's size) while its shading is that of a
