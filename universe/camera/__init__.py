@@ -13,6 +13,12 @@ Model, in the order the light goes through it, one module each:
 - ``detector``: shot, dark and read noise, hot pixels, digitisation to the bit depth (compiled kernel ``readout``).
 - ``frame``: all of the above for one frame (``render_frame``, ``scene_electrons``); ``display``: the 8-bit stretch.
 
+Any attitude, rate and position gives a valid frame: bodies are cast only over their boxes clipped to the frame
+(from inside a bounding sphere, over the whole frame, each ray marching from the camera; from inside a surface the
+frame is dark), a body's smear is its image motion where it shows in the frame, at most ``bodies._MAX_SMEAR_PX``
+long, rendered on coarser pixels when the smeared kernel would reach beyond ``bodies._FINE_MARGIN_PX``, and stars
+with long streaks are drawn as trails of point images along their true path.
+
 Faults: ``saturated`` gives a frame at full scale; ``blank`` gives a dark frame (no light from the scene: bias, dark
 current, read noise and hot pixels only).
 

@@ -32,7 +32,7 @@ from universe.camera.pinhole import cross3, image_velocity_px_s, quat_matrix, vi
 from universe.camera.psf import blurred, psf_half_size_px
 from universe.camera.raycast import TABLE_S as _TABLE_S
 from universe.camera.raycast import cast_body
-from universe.camera.scene import Body, RenderError, Scene
+from universe.camera.scene import Body, Scene
 from universe.config import CameraConfig
 
 
@@ -120,6 +120,7 @@ def _shape_table(body: Body, view_to_ast: np.ndarray, n: int) -> np.ndarray:
 
 
 def phase_factor(cfg: CameraConfig, cos_alpha: float) -> float:
+    """Linear-magnitude phase darkening ``10^(-0.4 slope alpha)`` at the phase angle whose cosine is ``cos_alpha``."""
     alpha_deg = math.degrees(math.acos(max(-1.0, min(1.0, cos_alpha))))
     return 10.0 ** (-0.4 * cfg.phase_slope_mag_deg * alpha_deg)
 
@@ -139,11 +140,14 @@ class BodyView:
 def body_box(
     centre_c: np.ndarray, r_max: float, f: float, cx: float, cy: float, size: int, margin: int
 ) -> tuple[int, int, int, int] | None:
-    """Pixel box of the projected bounding sphere within the frame grown by ``margin``; None if out of view."""
+    """Pixel box of the projected bounding sphere within the frame grown by ``margin``; None if out of view.
+
+    From inside the bounding sphere the body may be seen in any direction: the box is the whole grown frame.
+    """
     dist = float(np.linalg.norm(centre_c))
-    if dist <= r_max:
-        raise RenderError(f"camera is inside a body's bounding sphere (range {dist:.1f} m <= {r_max:.1f} m)")
     lo, hi = -margin, size + margin
+    if dist <= r_max:
+        return lo, hi, lo, hi
     cx_m, cy_m, cz_m = float(centre_c[0]), float(centre_c[1]), float(centre_c[2])
     den = cz_m * cz_m - r_max * r_max
     if cz_m > 0 and den > 1e-6 * dist * dist:
@@ -204,13 +208,33 @@ class BodyCaster:
         view_to_cam = np.stack([e1, e2, e3], axis=1)
         view_to_ast = quat_matrix(body.q_body_to_inertial).T @ c2i @ view_to_cam
         self.table = _shape_table(body, view_to_ast, n_side)
-        self.limb = _limb_radius(self.table, dist, math.pi * self.diameter_px)
+        # inside the bounding sphere there is no silhouette (the kernel marches each ray instead); inside the surface
+        # itself the camera sees the body's inside: no light, and nothing beyond it
+        self.near = dist <= view.r_max_m
+        self.inside = self.near and surrounds_camera(body, view.centre_c, c2i)
+        self.limb = _NO_LIMB if self.near else _limb_radius(self.table, dist, math.pi * self.diameter_px)
         self.sun_v = view_to_cam.T @ sun_c
         signal_scale = cfg.body_signal_e_s * body.reflectance_factor * phase_factor(cfg, float(sun_c @ e3))
         self.geometry = np.array([
             dist, 1.0 / f, cx, cy, body.radius_m * body.shape.min_radius(), view.r_max_m, body.radius_m, signal_scale,
             cfg.lommel_seeliger_weight, 0.25 * dist / f,  # warm starts a quarter pixel in front of the guess
+            1.0 if self.near else 0.0,
         ])
+
+
+def surrounds_camera(body: Body, centre_c: np.ndarray, c2i: np.ndarray) -> bool:
+    """Whether the camera is inside the body's surface (``centre_c``: the body centre in camera axes, m)."""
+    dist = float(np.linalg.norm(centre_c))
+    if dist > body.radius_m * body.shape.max_radius():
+        return False
+    if dist == 0.0:
+        return True
+    to_camera = quat_matrix(body.q_body_to_inertial).T @ (c2i @ (-centre_c / dist))
+    return dist <= body.radius_m * float(body.shape.radius(to_camera[None, :])[0])
+
+
+_NO_LIMB = np.ones(65, dtype=np.float32)  # the limb table of a body seen from inside its bounding sphere: unused
+_NO_LIMB.setflags(write=False)
 
 
 _SUBSAMPLE_MIN_PX = 48.0  # bodies at least this wide are cast on a 2 px grid inside, per pixel along edges
@@ -250,6 +274,8 @@ def _cast_view(
     """
     r0, r1, c0, c1 = view.box
     caster = BodyCaster(view, c2i, sun_c, cfg, f, cx, cy)
+    if caster.inside:  # the body surrounds the camera: it hides everything, at zero depth, and shows no light
+        return np.zeros((r1 - r0, c1 - c0), dtype=np.float32), np.zeros((r1 - r0, c1 - c0), dtype=np.float32)
     depth = np.full((r1 - r0, c1 - c0), np.inf, dtype=np.float32)
     sig = np.zeros((r1 - r0, c1 - c0), dtype=np.float32)
     window = np.array(depth_window if depth_window is not None else (0, 0, 0, 0), dtype=np.int64)
@@ -302,6 +328,55 @@ def _clusters(views: list[BodyView]) -> list[_Cluster]:
     return out
 
 
+# Smear of the bodies. Up to a kernel half-size of _FINE_MARGIN_PX they are rendered on the frame's own pixels; a
+# longer streak hides detail finer than its length over the kernel's reach anyway, so they are then rendered by the
+# same pinhole at 1/scale of the resolution (scale a power of two up to _MAX_SCALE) and resampled onto the frame.
+# Streaks are at most _MAX_SMEAR_PX long (the camera turning ~0.19 rad in one exposure at the default 2.9 deg field):
+# that bounds the work of any exposure; a longer streak keeps its direction and its light.
+_FINE_MARGIN_PX = 128
+_MAX_SCALE = 16
+_MAX_SMEAR_PX = 3840.0
+_FAR_OFF_FRAMES = 1.5  # a centre projecting farther than this many frame widths from the frame centre is off view
+
+
+def body_smear_px(
+    centre_c: np.ndarray, r_max: float, vel_c: np.ndarray, omega_c: np.ndarray, f: float, cx: float, cy: float,
+    size: int, exposure_s: float,
+) -> np.ndarray | None:
+    """Image motion (dcol, drow) of a body during the exposure, px, at most ``_MAX_SMEAR_PX`` long; None if the body
+    is out of view.
+
+    The motion is that of the body centre, or, when the centre projects far off the frame or lies behind the camera,
+    that of the point at the body's range along the centre of its box on the frame: the image velocity of a point
+    near the image plane grows without bound, while what shows in the frame moves at the rate of the frame's pixels.
+    ``vel_c`` is the velocity of the bodies relative to the camera, ``omega_c`` the body rate, both in camera axes.
+    """
+    z = float(centre_c[2])
+    far = _FAR_OFF_FRAMES * size
+    if z > 0 and abs(f * float(centre_c[0]) / z) <= far and abs(f * float(centre_c[1]) / z) <= far:
+        point = centre_c
+    else:
+        box = body_box(centre_c, r_max, f, cx, cy, size, 0)
+        if box is None:
+            return None
+        ray = np.array([((box[2] + box[3] - 1) / 2.0 - cx) / f, ((box[0] + box[1] - 1) / 2.0 - cy) / f, 1.0])
+        point = ray * (float(np.linalg.norm(centre_c)) / float(np.linalg.norm(ray)))
+    smear = image_velocity_px_s(point, vel_c - cross3(omega_c, point), f) * exposure_s
+    length = float(np.hypot(smear[0], smear[1]))
+    if length > _MAX_SMEAR_PX:
+        smear *= _MAX_SMEAR_PX / length
+    return smear
+
+
+def render_scale(sigma_px: float, smear_px: float) -> int:
+    """Scale (1, 2, 4 ... _MAX_SCALE) of the pixels bodies are rendered on for a streak ``smear_px`` long: the
+    smallest that keeps the smeared kernel's half-size within ``_FINE_MARGIN_PX`` of those pixels."""
+    scale = 1
+    while scale < _MAX_SCALE and psf_half_size_px(sigma_px / scale, smear_px / scale) > _FINE_MARGIN_PX:
+        scale *= 2
+    return scale
+
+
 def add_bodies(
     scene: Scene, cfg: CameraConfig, c2i: np.ndarray, omega_c: np.ndarray, f: float, cx: float, cy: float,
     signal: np.ndarray, boxes: list[tuple[int, int, int, int]],
@@ -312,17 +387,49 @@ def add_bodies(
     ``omega_c`` is the body rate in camera axes (rad/s); the camera moves at ``scene.camera_velocity_m_s``.
     """
     size = cfg.resolution_px
+    vel_c = c2i.T @ (-scene.camera_velocity_m_s)
+    seen = []
+    for i, body in enumerate(scene.bodies):
+        centre_c = c2i.T @ (body.centre_inertial_m - scene.camera_position_m)
+        r_max = body.radius_m * body.shape.max_radius()
+        smear = body_smear_px(centre_c, r_max, vel_c, omega_c, f, cx, cy, size, scene.exposure_s)
+        if smear is not None:
+            seen.append((i, body, centre_c, r_max, smear))
+        if surrounds_camera(body, centre_c, c2i):  # no light reaches the camera: the plume is hidden too
+            signal.fill(0.0)
+    scale = render_scale(cfg.psf_sigma_px, max((float(np.hypot(*s[4])) for s in seen), default=0.0))
+    if scale == 1:
+        return _add_views(seen, scene, cfg, c2i, f, cx, cy, size, cfg.psf_sigma_px, signal, boxes)
+    # the same pinhole at 1/scale resolution: focal length f / scale, principal point at the coarse frame's centre
+    n = size // scale
+    coarse = np.zeros((n, n), dtype=np.float32)
+    coarse_boxes: list[tuple[int, int, int, int]] = []
+    seen = [(i, body, centre_c, r_max, smear / scale) for i, body, centre_c, r_max, smear in seen]
+    c = (n - 1) / 2.0
+    occluders = _add_views(seen, scene, cfg, c2i, f / scale, c, c, n, cfg.psf_sigma_px / scale, coarse, coarse_boxes)
+    if coarse_boxes:
+        r0, r1 = min(b[0] for b in coarse_boxes) * scale, max(b[1] for b in coarse_boxes) * scale
+        c0, c1 = min(b[2] for b in coarse_boxes) * scale, max(b[3] for b in coarse_boxes) * scale
+        fine = cv2.resize(coarse, (size, size), interpolation=cv2.INTER_LINEAR)
+        signal[r0:r1, c0:c1] += fine[r0:r1, c0:c1]
+        boxes.append((r0, r1, c0, c1))
+    return [((b[0] * scale, b[1] * scale, b[2] * scale, b[3] * scale),
+             np.repeat(np.repeat(hit, scale, axis=0), scale, axis=1)) for b, hit in occluders]
+
+
+def _add_views(
+    seen: list[tuple[int, Body, np.ndarray, float, np.ndarray]], scene: Scene, cfg: CameraConfig, c2i: np.ndarray,
+    f: float, cx: float, cy: float, size: int, sigma_px: float, signal: np.ndarray,
+    boxes: list[tuple[int, int, int, int]],
+) -> list[tuple[tuple[int, int, int, int], np.ndarray]]:
+    """``add_bodies`` on a square pixel grid of ``size`` with focal length ``f`` and principal point (cx, cy), px,
+    for the bodies in view (index, body, camera-frame centre, bounding radius, smear on that grid)."""
     texp = scene.exposure_s
     occluders: list[tuple[tuple[int, int, int, int], np.ndarray]] = []
     sun_c = c2i.T @ scene.sun_direction
-    vel_c = c2i.T @ (-scene.camera_velocity_m_s)
     views: list[BodyView] = []
-    for i, body in enumerate(scene.bodies):
-        centre_c = c2i.T @ (body.centre_inertial_m - scene.camera_position_m)
-        dv = vel_c - cross3(omega_c, centre_c)
-        smear = image_velocity_px_s(centre_c, dv, f) * texp if centre_c[2] > 0 else np.zeros(2)
-        margin = psf_half_size_px(cfg.psf_sigma_px, float(np.hypot(*smear)))
-        r_max = body.radius_m * body.shape.max_radius()
+    for i, body, centre_c, r_max, smear in seen:
+        margin = psf_half_size_px(sigma_px, float(np.hypot(*smear)))
         box = body_box(centre_c, r_max, f, cx, cy, size, margin)
         if box is not None:
             views.append(BodyView(i, body, centre_c, r_max, box, (float(smear[0]), float(smear[1]))))
@@ -347,7 +454,7 @@ def add_bodies(
         if not hit.any():
             continue
         occluders.append((cluster.box, hit))
-        m, cut = blurred(rad * np.float32(texp), cfg.psf_sigma_px, cluster.members[0].smear_px)
+        m, cut = blurred(rad * np.float32(texp), sigma_px, cluster.members[0].smear_px)
         fr0, fr1 = max(0, r0 - m), min(size, r1 + m)
         fc0, fc1 = max(0, c0 - m), min(size, c1 + m)
         if fr0 < fr1 and fc0 < fc1:

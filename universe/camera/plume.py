@@ -48,7 +48,8 @@ def plume_signal(
         return None
     size = cfg.resolution_px
     centre_c = c2i.T @ (src.centre_inertial_m - scene.camera_position_m)
-    if float(np.linalg.norm(centre_c)) <= big_r:
+    outside = float(np.linalg.norm(centre_c)) > big_r
+    if not outside:
         box = (0, size, 0, size)  # the camera is inside the plume
     else:
         b = body_box(centre_c, big_r, f, cx, cy, size, 0)
@@ -73,23 +74,38 @@ def plume_signal(
     axis_c = c2i.T @ unit3("PlumeConfig.axis_inertial", plume.axis_inertial)
     q_axis = q_c[0] * axis_c[0] + q_c[1] * axis_c[1] + q_c[2] * axis_c[2]
     d_axis = d[0] * axis_c[0] + d[1] * axis_c[1] + d[2] * axis_c[2]
-    # samples symmetric about the closest point: x = q + ell d and q . d = 0, so |x|^2 = b^2 + ell^2 for +-ell
-    half = _PLUME_STEPS // 2
-    frac = (np.arange(half) + 0.5) / half
-    ell = b_eff[None] * _tan_multiples(phi_max, frac)  # (steps/2, gh, gw), ell >= 0
-    rr = np.sqrt(b[None] * b[None] + ell * ell)
-    inv_rr = 1.0 / np.maximum(rr, 1e-9)
     # the cone wall is not sharp (ejection directions scatter): a linear ramp over +-5 deg about the half-angle
     c_out = math.cos(math.radians(min(plume.half_angle_deg + 5.0, 90.0)))
     c_in = math.cos(math.radians(max(plume.half_angle_deg - 5.0, 0.0)))
     ramp = 1.0 / (c_in - c_out)
-    along = ell * d_axis[None]
-    edge_sum = np.clip(((q_axis[None] + along) * inv_rr - c_out) * ramp, 0.0, 1.0)
-    edge_sum += np.clip(((q_axis[None] - along) * inv_rr - c_out) * ramp, 0.0, 1.0)
-    inside_sum = (edge_sum * (rr >= src.radius_m)).sum(axis=0)
+
+    def in_cone(cos_axis: np.ndarray) -> np.ndarray:
+        return np.clip((cos_axis - c_out) * ramp, 0.0, 1.0)
+
     omega = 2.0 * math.pi * (1.0 - math.cos(math.radians(plume.half_angle_deg)))
-    dphi = 2.0 * phi_max / _PLUME_STEPS
-    tau = area / (omega * big_r) * inside_sum * dphi / b_eff
+    if outside:
+        # samples symmetric about the closest point: x = q + ell d and q . d = 0, so |x|^2 = b^2 + ell^2 for +-ell
+        half = _PLUME_STEPS // 2
+        frac = (np.arange(half) + 0.5) / half
+        ell = b_eff[None] * _tan_multiples(phi_max, frac)  # (steps/2, gh, gw), ell >= 0
+        rr = np.sqrt(b[None] * b[None] + ell * ell)
+        inv_rr = 1.0 / np.maximum(rr, 1e-9)
+        along = ell * d_axis[None]
+        weight = in_cone((q_axis[None] + along) * inv_rr) + in_cone((q_axis[None] - along) * inv_rr)
+        inside_sum = (weight * (rr >= src.radius_m)).sum(axis=0)
+        dphi = 2.0 * phi_max / _PLUME_STEPS
+        tau = area / (omega * big_r) * inside_sum * dphi / b_eff
+        # a ray whose closest point to the source is behind the camera meets none of the cloud
+        tau = np.where(t_c > 0.0, tau, 0.0)
+    else:
+        # from inside the cloud a line of sight runs from the camera (at ell = -t_c) out to the cloud's front
+        phi_lo = np.arctan(-t_c / b_eff)
+        frac = (np.arange(_PLUME_STEPS) + 0.5) / _PLUME_STEPS
+        ell = b_eff[None] * np.tan(phi_lo[None] + frac[:, None, None] * (phi_max - phi_lo)[None])
+        rr = np.sqrt(b[None] * b[None] + ell * ell)
+        weight = in_cone((q_axis[None] + ell * d_axis[None]) / np.maximum(rr, 1e-9))
+        inside_sum = (weight * (rr >= src.radius_m)).sum(axis=0)
+        tau = area / (omega * big_r) * inside_sum * ((phi_max - phi_lo) / _PLUME_STEPS) / b_eff
     sun_c = c2i.T @ scene.sun_direction
     cos_alpha = float(sun_c @ (p / np.linalg.norm(p)))
     coarse = (cfg.body_signal_e_s * plume.reflectance_factor * phase_factor(cfg, cos_alpha)) * (-np.expm1(-tau))

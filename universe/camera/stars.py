@@ -141,9 +141,12 @@ def add_stars(
     # -omega x v per star, by components (np.cross costs more in argument handling than in arithmetic)
     dv = np.stack([w2 * v[:, 1] - w1 * v[:, 2], w0 * v[:, 2] - w2 * v[:, 0], w1 * v[:, 0] - w0 * v[:, 1]], axis=1)
     smear = image_velocity_px_s(v, dv, f) * scene.exposure_s
+    reach = np.max(np.abs(smear), axis=0, initial=0.0)
+    if not np.all(np.isfinite(reach)) or psf_half_size_px(cfg.psf_sigma_px, float(reach.max())) > _MAX_STAMP_HALF_PX:
+        return _add_star_trails(v, mag, scene.exposure_s, cfg, omega_c, f, cx, cy, signal, occluders)
     # stamps cut at 3.5 sigma beyond half the smear along each image axis (a rectangle along a streak)
-    hx = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.abs(smear[:, 0]), initial=0.0)))
-    hy = psf_half_size_px(cfg.psf_sigma_px, float(np.max(np.abs(smear[:, 1]), initial=0.0)))
+    hx = psf_half_size_px(cfg.psf_sigma_px, float(reach[0]))
+    hy = psf_half_size_px(cfg.psf_sigma_px, float(reach[1]))
     keep = (col > -hx) & (col < size - 1 + hx) & (row > -hy) & (row < size - 1 + hy)
     ic = np.rint(col).astype(np.int64)
     ir = np.rint(row).astype(np.int64)
@@ -174,3 +177,81 @@ def add_stars(
     np.add.at(signal.reshape(-1), flat, stamp[ok])
     return flat
 
+
+
+# Streaks whose stamps would reach farther than this (px) from the star, or stars whose image-plane motion is not
+# finite (near the image plane), are drawn as trails of point images along their true path instead of rectangles.
+_MAX_STAMP_HALF_PX = 128
+_TRAIL_SAMPLES_MAX = 1 << 20  # point images per frame at most (all stars): bounds the work of any rate and exposure
+_TRAIL_CHUNK = 1 << 16  # point images stamped at a time
+
+
+def _add_star_trails(
+    v: np.ndarray, mag: np.ndarray, exposure_s: float, cfg: CameraConfig, omega_c: np.ndarray, f: float, cx: float,
+    cy: float, signal: np.ndarray, occluders: list[tuple[tuple[int, int, int, int], np.ndarray]],
+) -> np.ndarray:
+    """Add stars (camera-frame unit directions ``v`` at mid-exposure) as the average of their point images over the
+    exposure while the camera turns at ``omega_c``: K instants evenly spread over it, at most half a PSF sigma apart
+    in the frame (a sum of Gaussians one sigma apart is already flat to 1e-8; half a sigma keeps the streak's ends
+    within 0.5 % of the peak of the closed form), each with 1/K of the star's light and hidden where a body covers
+    it. Return the flat indices touched. Used for long streaks: the cost grows with the length of the
+    trails inside the frame, not with the square of the streak, and the path is exact (a rotation), not linearised.
+    """
+    size = cfg.resolution_px
+    sigma = cfg.psf_sigma_px
+    rate = float(np.linalg.norm(omega_c))
+    turn = rate * exposure_s  # rad the camera turns in the exposure
+    half_diag = math.atan(math.hypot(size, size) / (2.0 * f))
+    # only stars within the field's half-diagonal plus the turn (and the PSF) of the boresight can enter the frame
+    reach = half_diag + turn + 4.0 * sigma / f
+    if reach < math.pi:
+        near = v[:, 2] >= math.cos(reach)
+        v, mag = v[near], mag[near]
+    if len(v) == 0:
+        return np.empty(0, dtype=np.int64)
+    # the frame's pixels move at up to |omega| f (1 + tan^2) px/s: instants half a sigma apart there
+    px_per_rad = f * (1.0 + math.tan(min(half_diag, 1.5)) ** 2)
+    k = int(min(max(math.ceil(2.0 * turn * px_per_rad / sigma), 1), max(_TRAIL_SAMPLES_MAX // len(v), 1)))
+    frac = (np.arange(k) + 0.5) / k - 0.5  # instants, fraction of the exposure from mid-exposure
+    if rate > 0.0:
+        axis = omega_c / rate
+        # a fixed direction seen from a camera turning at omega: v(t) = R(-omega t) v (Rodrigues)
+        phi = -turn * frac
+        cos_p, sin_p = np.cos(phi)[None, :, None], np.sin(phi)[None, :, None]
+        axv = np.cross(axis, v)[:, None, :]
+        adv = (v @ axis)[:, None, None] * axis[None, None, :]
+        pts = v[:, None, :] * cos_p + axv * sin_p + adv * (1.0 - cos_p)  # (stars, k, 3)
+    else:
+        pts = v[:, None, :]
+    flux_e = np.repeat(cfg.star_mag0_e_s * 10.0 ** (-0.4 * mag) * exposure_s / k, pts.shape[1])
+    pts = pts.reshape(-1, 3)
+    h = psf_half_size_px(sigma, 0.0)
+    front = pts[:, 2] > 1e-6
+    z = np.where(front, pts[:, 2], 1.0)
+    col = cx + f * pts[:, 0] / z
+    row = cy + f * pts[:, 1] / z
+    keep = front & (col > -h) & (col < size - 1 + h) & (row > -h) & (row < size - 1 + h)
+    col, row, flux_e = col[keep], row[keep], flux_e[keep]
+    ic = np.rint(col).astype(np.int64)
+    ir = np.rint(row).astype(np.int64)
+    seen = np.ones(len(col), dtype=bool)
+    for (r0, r1, c0, c1), hit in occluders:
+        where = np.flatnonzero((ir >= r0) & (ir < r1) & (ic >= c0) & (ic < c1))
+        seen[where[hit[ir[where] - r0, ic[where] - c0]]] = False
+    col, row, ic, ir, flux_e = col[seen], row[seen], ic[seen], ir[seen], flux_e[seen]
+    o = np.arange(-h, h + 1)
+    zero = np.float32(0.0)
+    touched = np.zeros(size * size, dtype=bool)
+    for s in range(0, len(col), _TRAIL_CHUNK):
+        part = slice(s, s + _TRAIL_CHUNK)
+        pc = ic[part, None, None] + o[None, None, :]
+        pr = ir[part, None, None] + o[None, :, None]
+        stamp = smeared_psf((pc - col[part, None, None]).astype(np.float32),
+                            (pr - row[part, None, None]).astype(np.float32), sigma, zero, zero)
+        stamp *= (flux_e[part] / stamp.sum(axis=(1, 2))).astype(np.float32)[:, None, None]
+        pr, pc = np.broadcast_arrays(pr, pc)
+        ok = (pr >= 0) & (pr < size) & (pc >= 0) & (pc < size)
+        flat = pr[ok] * size + pc[ok]
+        np.add.at(signal.reshape(-1), flat, stamp[ok])
+        touched[flat] = True
+    return np.flatnonzero(touched)

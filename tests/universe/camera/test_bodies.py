@@ -12,8 +12,8 @@ from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from tests.universe.camera.common import C_1024, F_1024, SPHERE, lit_pixels, scene
-from universe.camera import Body, project_inertial, render_frame
-from universe.camera.bodies import body_box
+from universe.camera import Body, project_inertial, render_frame, scene_electrons
+from universe.camera.bodies import body_box, render_scale
 from universe.config import CameraConfig, PlumeConfig
 from universe.shapes import ShapeModel, fibonacci_sphere
 
@@ -184,3 +184,26 @@ def test_body_box_holds_the_projection_of_its_bounding_sphere(
     assert np.all((ir >= r0) & (ir < r1) & (ic >= c0) & (ic < c1))
     if seen.all():  # the whole sphere in the frame: the box is tight
         assert r0 >= ir.min() - 4 and r1 <= ir.max() + 5 and c0 >= ic.min() - 4 and c1 <= ic.max() + 5
+
+
+def test_a_streak_too_long_for_the_frame_s_pixels_keeps_the_light_and_the_closed_form_length() -> None:
+    """A body smeared 600 px (rendered at 1/4 resolution and resampled): the same total light as unsmeared, the
+    image variance along the motion grown by L^2 / 12, across it by less than the 4 px of the coarser pixels."""
+    cfg = CameraConfig(hot_pixel_count=0, read_noise_e=0.0, dark_current_e_s=0.0, lommel_seeliger_weight=1.0)
+    rng_m, exposure, length_px = 55_000.0, 0.05, 600.0
+    speed = length_px * rng_m / (exposure * F_1024)
+    assert render_scale(cfg.psf_sigma_px, length_px) == 4
+    body = Body(np.array([0.0, 0.0, rng_m]), 100.0, SPHERE)
+    moments = []
+    for v in (0.0, speed):
+        e = scene_electrons(scene((body,), exposure_s=exposure, camera_velocity_m_s=np.array([0.0, v, 0.0])), cfg,
+                            PlumeConfig()).astype(float)
+        rows, cols = np.mgrid[0:1024, 0:1024]
+        m = e.sum()
+        yc, xc = (e * rows).sum() / m, (e * cols).sum() / m
+        moments.append((m, yc, (e * (rows - yc) ** 2).sum() / m, (e * (cols - xc) ** 2).sum() / m))
+    (m0, y0, along0, across0), (m1, y1, along1, across1) = moments
+    assert m1 == pytest.approx(m0, rel=0.01)
+    assert y1 == pytest.approx(y0, abs=0.5)
+    assert along1 - along0 == pytest.approx(length_px**2 / 12, rel=0.01)
+    assert 0.0 <= across1 - across0 < 16.0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tests.universe.camera.common import C_1024, F_1024, SPHERE, scene
-from universe.camera import Body, plume_cross_section_m2, render_frame
+from universe.camera import Body, plume_cross_section_m2, render_frame, scene_electrons
 from universe.camera.plume import _tan_multiples
 from universe.config import CameraConfig, PlumeConfig
 
@@ -44,3 +44,20 @@ def test_tan_multiples_match_tan() -> None:
     angle = np.linspace(0.0, math.radians(89.9), 500)
     frac = (np.arange(8) + 0.5) / 8
     assert np.allclose(_tan_multiples(angle, frac), np.tan(frac[:, None] * angle[None]), rtol=1e-9, atol=1e-12)
+
+
+def test_from_inside_the_cloud_a_line_of_sight_counts_only_what_lies_ahead() -> None:
+    """On the cone axis 3 km from the source, inside a 6 km cloud, looking outward along the axis: the optical depth
+    is the 1/r^2 density integrated from the camera to the front only, A / (Omega R b) (atan(R/b) - atan(D/b)) with
+    b the source's half radius (the density's core), not through the whole cloud behind."""
+    cfg = CameraConfig(phase_slope_mag_deg=0.0)
+    plume = PlumeConfig(axis_inertial=(0.0, 0.0, 1.0))
+    t_s, dist = 120.0, 3_000.0
+    src = Body(np.array([0.0, 0.0, -dist]), 82.0, SPHERE)
+    s = scene((src,), sun=(0.0, 0.0, 1.0), plume_body_index=0, time_since_impact_s=t_s)
+    e = scene_electrons(s, cfg, plume)
+    front, b = plume.speed_m_s * t_s, 0.5 * src.radius_m
+    omega = 2 * math.pi * (1 - math.cos(math.radians(plume.half_angle_deg)))
+    tau = plume_cross_section_m2(plume, t_s) / (omega * front * b) * (math.atan(front / b) - math.atan(dist / b))
+    expected = cfg.body_signal_e_s * -math.expm1(-tau) * 0.01
+    assert e[508:516, 508:516].mean() == pytest.approx(expected, rel=0.01)

@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.universe.camera.common import SPHERE, scene
-from universe.camera import Body, RenderError, render_frame
-from universe.config import CameraConfig, PlumeConfig
+from tests.universe.camera.common import scene
+from universe.camera import Body, RenderError
 
 
 def test_bad_inputs_raise_named_errors() -> None:
@@ -20,8 +19,3 @@ def test_bad_inputs_raise_named_errors() -> None:
         scene(plume_body_index=0)
     with pytest.raises(RenderError, match="radius_m"):
         Body(np.zeros(3), -1.0)
-    with pytest.raises(RenderError, match="inside"):
-        render_frame(
-            scene((Body(np.array([0.0, 0.0, 100.0]), 390.0, SPHERE),)), CameraConfig(), PlumeConfig(),
-            np.random.default_rng(0),
-        )

@@ -10,8 +10,8 @@ from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
 from tests.universe.camera.common import C_1024, F_1024, scene
-from universe.camera import StarCatalogue, focal_length_px, render_frame, sky_stars
-from universe.camera.stars import _cell_stars
+from universe.camera import StarCatalogue, focal_length_px, render_frame, scene_electrons, sky_stars
+from universe.camera.stars import _add_star_trails, _cell_stars
 from universe.config import CameraConfig, PlumeConfig
 
 
@@ -104,3 +104,37 @@ def test_sky_stars_hold_every_catalogue_star_in_the_field() -> None:
         dirs, _ = sky_stars(3, c2i, cfg)
         have = {tuple(np.round(d, 12)) for d in dirs}
         assert all(tuple(np.round(d, 12)) in have for d in in_field)
+
+
+def test_a_trail_of_point_images_matches_the_closed_form_streak() -> None:
+    """The long-streak method (point images half a sigma apart along the true path) draws a 60 px streak as the closed
+    form (Gaussian times a line) does: the same light in every pixel to 1 % of the peak, the same total to 0.5 %."""
+    cfg = CameraConfig(psf_sigma_px=1.2)
+    omega = np.array([0.0, math.radians(17.0), math.radians(5.0)])  # 60 px in 0.01 s, roll included
+    d = np.array([[(300.3 - C_1024) / F_1024, (640.8 - C_1024) / F_1024, 1.0]])
+    d /= np.linalg.norm(d)
+    closed = scene_electrons(scene(body_rate_rad_s=omega, star_catalogue=StarCatalogue(d, np.array([1.0]))),
+                             cfg, PlumeConfig())
+    trail = np.zeros((1024, 1024), dtype=np.float32)
+    _add_star_trails(d, np.array([1.0]), 0.01, cfg, omega, F_1024, C_1024, C_1024, trail, [])
+    assert np.max(np.abs(trail - closed)) < 0.01 * closed.max()
+    assert trail.sum() == pytest.approx(closed.sum(), rel=5e-3)
+
+
+def test_a_streak_longer_than_the_stamps_is_a_uniform_line_of_the_star_s_light() -> None:
+    """Turning 0.04 rad in the exposure (an 809 px streak): the star's whole light, centred on its mid-exposure
+    pixel, spread along |omega| T f with the variance of a uniform segment, L^2/12 + sigma^2."""
+    cfg = CameraConfig(hot_pixel_count=0)
+    omega = np.array([0.8, 0.6, 0.0]) * 4.0
+    exposure = 0.01
+    s = scene(body_rate_rad_s=omega, exposure_s=exposure,
+              star_catalogue=StarCatalogue(np.array([[0.0, 0.0, 1.0]]), np.array([-1.0])))
+    e = scene_electrons(s, cfg, PlumeConfig()).astype(float)
+    flux = cfg.star_mag0_e_s * 10 ** 0.4 * exposure
+    assert e.sum() == pytest.approx(flux, rel=2e-3)
+    rows, cols = np.mgrid[0:1024, 0:1024]
+    x, y = cols - C_1024, rows - C_1024
+    assert abs((e * x).sum() / flux) < 0.5 and abs((e * y).sum() / flux) < 0.5
+    along = (-x * omega[1] + y * omega[0]) / np.linalg.norm(omega[:2])  # image motion runs along (-w_y, w_x)
+    length = np.linalg.norm(omega) * exposure * F_1024
+    assert (e * along**2).sum() / flux == pytest.approx(length**2 / 12 + cfg.psf_sigma_px**2, rel=0.01)
