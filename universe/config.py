@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 
 from contracts.link import LinkConfig
 from contracts.model import Frozen
@@ -186,8 +186,20 @@ class CameraConfig(Frozen):
     )
     gain_e_per_dn: float = Field(4.0, gt=0, description="detector gain, electrons per DN (CMOS sensor class)")
     read_noise_e: float = Field(8.0, ge=0, description="one-sigma read noise, electrons (CMOS sensor class)")
-    dark_offset_dn: float = Field(64.0, ge=0, description="dark (bias) offset added to every pixel, DN (typical ADC pedestal)")
-    dark_current_e_s: float = Field(50.0, ge=0, description="mean dark current, electrons per second per pixel (CMOS at ~20 C)")
+    dark_offset_dn: float = Field(
+        64.0, ge=0, description="dark (bias) offset added to every pixel, DN (typical ADC pedestal)"
+    )
+    dark_current_e_s: float = Field(
+        50.0, ge=0, description="mean dark current, electrons per second per pixel (CMOS at ~20 C)"
+    )
+    dark_current_dsnu_e_s: float = Field(
+        0.0,
+        ge=0,
+        description="dark signal non-uniformity: one-sigma pixel-to-pixel spread of the dark current, electrons per "
+        "second per pixel; each pixel's dark current is fixed, lognormal with mean dark_current_e_s and this spread "
+        "(0: uniform, the default until the on-board imaging is robust to it; CMOS image sensor datasheets quote a "
+        "DSNU of 10-50 % of the mean dark current, configs/scenarios/detector.yaml uses 30 %)",
+    )
     body_signal_e_s: float = Field(
         1.5e6,
         gt=0,
@@ -223,7 +235,81 @@ class CameraConfig(Frozen):
     hot_pixel_signal_e: float = Field(
         8000.0, ge=0, description="largest hot-pixel excess per frame, electrons (each a fixed 20-100 % of it)"
     )
-    hot_pixel_seed: int = Field(7, ge=0, description="seed of the hot-pixel positions and levels (fixed per sensor)")
+    hot_pixel_seed: int = Field(
+        7,
+        ge=0,
+        description="seed of the sensor's fixed maps: hot, warm and dead pixels, dead columns and the dark-current "
+        "non-uniformity (fixed per sensor: the same in every frame of every run)",
+    )
+    warm_pixel_fraction: float = Field(
+        0.0,
+        ge=0,
+        le=0.1,
+        description="fraction of the pixels that are warm: a fixed excess dark current, growing with the exposure "
+        "(0: none, the default until the on-board imaging is robust to them; CMOS image sensor datasheets allow "
+        "of order 1e-4 to 1e-3 of the pixels outside their dark-current specification and proton damage in space "
+        "adds more, configs/scenarios/detector.yaml uses 1e-3)",
+    )
+    warm_pixel_dark_current_e_s: float = Field(
+        2000.0,
+        ge=0,
+        description="largest excess dark current of a warm pixel, electrons per second (each a fixed 20-100 % of it; "
+        "40x the default mean dark current, the order of the warm-pixel tail of irradiated CMOS sensors)",
+    )
+    dead_pixel_count: int = Field(
+        0,
+        ge=0,
+        description="number of dead pixels, reading the bias only, at fixed seeded positions (count; 0 until the "
+        "on-board imaging is robust to them; CMOS datasheets allow defects of order 1e-4 of the pixels: "
+        "configs/scenarios/detector.yaml uses 100 of 1024x1024)",
+    )
+    dead_column_count: int = Field(
+        0,
+        ge=0,
+        description="number of dead columns, reading the bias only, at fixed seeded positions (count; 0 until the "
+        "on-board imaging is robust to them; column defects are the usual readout-chain failure of a CMOS sensor, "
+        "configs/scenarios/detector.yaml uses 1)",
+    )
+    cosmic_ray_flux_cm2_s: float = Field(
+        0.0,
+        ge=0,
+        description="rate of charged particles crossing the sensor, per cm^2 per second over its area "
+        "(resolution_px x pixel_pitch_um squared), from every direction (0: none, the default until the on-board "
+        "imaging is robust to them; galactic cosmic rays in interplanetary space near solar minimum are about "
+        "5 /cm^2/s, the level of configs/scenarios/detector.yaml)",
+    )
+    pixel_pitch_um: float = Field(
+        5.5,
+        gt=0,
+        description="pixel pitch, micrometres (5.5 um: the pitch of 2048x2048 scientific CMOS sensors such as the "
+        "CMOSIS CMV4000, the one psf_sigma_px assumes); sets the sensor area the cosmic rays cross",
+    )
+    cosmic_ray_depth_um: float = Field(
+        10.0,
+        gt=0,
+        description="depth of silicon that collects a particle's charge, micrometres (the epitaxial layer of a "
+        "front-illuminated image sensor, ~10 um); a particle at zenith angle theta draws a streak depth tan(theta) "
+        "long on the pixels",
+    )
+    cosmic_ray_charge_e_per_um: float = Field(
+        80.0,
+        gt=0,
+        description="charge a particle frees along its path in silicon, electrons per micrometre (most probable loss "
+        "of a minimum-ionizing particle in thin silicon, ~80 electron-hole pairs per um: Particle Data Group, "
+        "Review of Particle Physics, passage of particles through matter)",
+    )
+
+
+    @model_validator(mode="after")
+    def _defects_fit(self) -> CameraConfig:
+        n = self.resolution_px
+        if self.dead_pixel_count > n * n:
+            raise ValueError(f"dead_pixel_count: {self.dead_pixel_count} is more than the {n * n} pixels")
+        if self.dead_column_count > n:
+            raise ValueError(f"dead_column_count: {self.dead_column_count} is more than the {n} columns")
+        if self.dark_current_dsnu_e_s > 0 and self.dark_current_e_s <= 0:
+            raise ValueError("dark_current_dsnu_e_s: a non-uniformity needs a positive mean dark_current_e_s")
+        return self
 
 
 class PlumeConfig(Frozen):

@@ -69,7 +69,7 @@ def render_at(
     (col, row) of the centres of Dimorphos and Didymos in it (None when the centre has no pixel: behind the camera,
     or so near the image plane that its projection is not a finite number)."""
     scene = scene_at(u, exposure_s)
-    pixels = render_frame(scene, u.cfg.camera, u.cfg.plume, u.rng["camera"])
+    pixels = render_frame(scene, u.cfg.camera, u.cfg.plume, u.rng["camera"], u.rng["cosmic_rays"])
     return pixels, _pixel(scene, u, 1), _pixel(scene, u, 0)
 
 

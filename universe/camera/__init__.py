@@ -10,7 +10,9 @@ Model, in the order the light goes through it, one module each:
 - ``stars``: the seeded all-sky catalogue and explicit stars, hidden behind bodies.
 - ``psf``: Gaussian PSF convolved with the line of the image motion during the exposure (the body rate for
   everything, plus the translation of each body's line of sight when ``camera_velocity_m_s`` is given).
-- ``detector``: shot, dark and read noise, hot pixels, digitisation to the bit depth (compiled kernel ``readout``).
+- ``detector``: shot, dark and read noise, digitisation to the bit depth (compiled kernel ``readout``), with the
+  sensor's fixed ``defects`` (hot, warm and dead pixels, dead columns, dark-current non-uniformity) and
+  ``cosmic_rays``; ``dark_frame`` is a frame with the shutter closed.
 - ``frame``: all of the above for one frame (``render_frame``, ``scene_electrons``); ``display``: the 8-bit stretch.
 
 Any attitude, rate and position gives a valid frame: bodies are cast only over their boxes clipped to the frame
@@ -28,7 +30,9 @@ per-ray and per-pixel loops are compiled with Numba (``raycast``, ``readout``, c
 sets are cached per boresight bin, the plume is integrated on 64x64 nodes.
 """
 
-from universe.camera.detector import NORMAL_QUANTILES, hot_pixels, normal_codes
+from universe.camera.cosmic_rays import CosmicRays, cosmic_rays, deposit, expected_hits
+from universe.camera.defects import SensorDefects, hot_pixels, sensor_defects
+from universe.camera.detector import NORMAL_QUANTILES, dark_frame, normal_codes
 from universe.camera.display import frame_to_png8
 from universe.camera.frame import render_frame, scene_electrons, warm_up
 from universe.camera.pinhole import (
@@ -44,8 +48,9 @@ from universe.camera.scene import Body, RenderError, Scene, StarCatalogue
 from universe.camera.stars import sky_stars
 
 __all__ = [
-    "NORMAL_QUANTILES", "Body", "RenderError", "Scene", "StarCatalogue", "camera_to_inertial_matrix",
-    "focal_length_px", "frame_to_png8", "hot_pixels", "normal_codes", "plume_cross_section_m2", "principal_point_px",
-    "project_inertial", "psf_half_size_px", "psf_kernel", "quat_matrix", "render_frame", "scene_electrons",
-    "sky_stars", "smeared_psf", "warm_up",
+    "NORMAL_QUANTILES", "Body", "CosmicRays", "RenderError", "Scene", "SensorDefects", "StarCatalogue",
+    "camera_to_inertial_matrix", "cosmic_rays", "dark_frame", "deposit", "expected_hits", "focal_length_px",
+    "frame_to_png8", "hot_pixels", "normal_codes", "plume_cross_section_m2", "principal_point_px", "project_inertial",
+    "psf_half_size_px", "psf_kernel", "quat_matrix", "render_frame", "scene_electrons", "sensor_defects", "sky_stars",
+    "smeared_psf", "warm_up",
 ]

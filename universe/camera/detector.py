@@ -1,23 +1,31 @@
-"""The detector: scene electrons to digital numbers, with shot and read noise, dark current and hot pixels.
+"""The detector: scene electrons to digital numbers, with shot and read noise, dark current, the sensor's fixed
+defects (``universe.camera.defects``) and cosmic rays (``universe.camera.cosmic_rays``).
 
 A pixel holding ``s`` scene electrons reads ``offset + dark/g + (s + sqrt(s + dark + read^2) z) / g`` DN (Gaussian
 noise with the Poisson variance of signal and dark current plus the read noise), rounded and clipped to the bit
-depth; hot pixels sit at fixed seeded positions. Standard normal deviates come from inverse-CDF sampling of
-independent 16-bit uniforms per pixel and per frame (the generator's raw 64-bit draws cut in four; 65536 normal
-quantiles, tails clipped at +-4.3 sigma): about 5x faster than ``Generator.standard_normal`` and distributed the same
-within that resolution. Pixels outside the boxes holding bodies and plume (and off stars and hot pixels) are
-digitised by a per-run table from code to DN, the same arithmetic as with signal; the boxes, or the whole frame when
-they cover most of it, by the compiled kernel ``universe.camera.readout`` in one pass.
+depth. Hot and warm pixels and cosmic rays add their charge to the signal; a non-uniform dark current enters each
+pixel's signal with its own value; dead pixels and columns read the bias (the offset) only. Standard normal deviates
+come from inverse-CDF sampling of independent 16-bit uniforms per pixel and per frame (the generator's raw 64-bit
+draws cut in four; 65536 normal quantiles, tails clipped at +-4.3 sigma): about 5x faster than
+``Generator.standard_normal`` and distributed the same within that resolution. With a uniform dark current, pixels
+outside the boxes holding bodies and plume (and off stars, hot and warm pixels and cosmic rays) are digitised by a
+per-run table from code to DN, the same arithmetic as with signal; the boxes, or the whole frame when they cover
+most of it (or when the dark current is not uniform), by the compiled kernel ``universe.camera.readout`` in one pass.
 """
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
 from scipy.special import ndtri
 
 from universe.camera import readout
+from universe.camera.cosmic_rays import cosmic_rays, deposit
+from universe.camera.defects import sensor_defects
+from universe.camera.scene import RenderError
+from universe.camera.scratch import work_buffer
 from universe.config import CameraConfig
 
 
@@ -42,17 +50,6 @@ def _dark_dn_table(cfg: CameraConfig, dark_e: float, max_dn: int) -> np.ndarray:
     ).reshape(-1)
     table.setflags(write=False)
     return table
-
-
-@lru_cache(maxsize=16)
-def hot_pixels(seed: int, count: int, size: int, signal_e: float) -> tuple[np.ndarray, np.ndarray]:
-    """Fixed hot pixels of a ``size`` x ``size`` sensor: flat indices and excess electrons per frame."""
-    rng = np.random.default_rng(seed)
-    idx = rng.choice(size * size, size=min(count, size * size), replace=False)
-    level = signal_e * rng.uniform(0.2, 1.0, idx.size)
-    idx.setflags(write=False)
-    level.setflags(write=False)
-    return idx, level
 
 
 def digitise(
@@ -93,21 +90,51 @@ def merged_boxes(boxes: list[tuple[int, int, int, int]]) -> list[tuple[int, int,
 
 def read_out(
     signal: np.ndarray, boxes: list[tuple[int, int, int, int]], star_flat: np.ndarray, cfg: CameraConfig,
-    exposure_s: float, rng: np.random.Generator,
+    exposure_s: float, rng: np.random.Generator, cosmic_rng: np.random.Generator | None = None,
 ) -> np.ndarray:
     """Read out a frame holding ``signal`` scene electrons (H, W) float32, non-zero only inside ``boxes``
-    (r0, r1, c0, c1) and at the flat pixels ``star_flat``: (H, W) uint16 DN, the noise from ``rng``.
+    (r0, r1, c0, c1) and at the flat pixels ``star_flat``: (H, W) uint16 DN, the noise from ``rng``, the cosmic rays
+    (when their flux is not zero) from ``cosmic_rng`` (default: ``rng``, after the noise).
 
-    ``signal`` is a work buffer: the hot pixels' electrons are added to it in place.
+    ``signal`` is a work buffer: the sensor's own charge (hot and warm pixels, cosmic rays, dark current when it is
+    not uniform) is added to it in place.
     """
     size = cfg.resolution_px
     max_dn = (1 << cfg.bit_depth) - 1
-    hot_idx, hot_e = hot_pixels(cfg.hot_pixel_seed, cfg.hot_pixel_count, size, cfg.hot_pixel_signal_e)
+    defects = sensor_defects(cfg)
     flat_signal = signal.reshape(-1)
-    flat_signal[hot_idx] += hot_e.astype(np.float32)
+    flat_signal[defects.hot_idx] += defects.hot_e
+    points = [star_flat, defects.hot_idx]
+    if defects.warm_idx.size:
+        flat_signal[defects.warm_idx] += (defects.warm_e_s * exposure_s).astype(np.float32)
+        points.append(defects.warm_idx)
 
     dark_e = cfg.dark_current_e_s * exposure_s
     codes = normal_codes(rng, (size, size))
+    if cfg.cosmic_ray_flux_cm2_s > 0:
+        flat, electrons = deposit(cosmic_rays(cfg, exposure_s, rng if cosmic_rng is None else cosmic_rng), size)
+        np.add.at(flat_signal, flat, electrons)
+        points.append(flat)
+    if defects.dark_e_s is not None:
+        # each pixel's own dark current joins its signal: the noise model treats dark and signal electrons alike
+        signal += defects.dark_e_s * np.float32(exposure_s)
+        frame = digitise(signal, codes, cfg, 0.0, max_dn)
+    else:
+        frame = _read_lit_parts(signal, boxes, np.concatenate(points), codes, cfg, dark_e, max_dn)
+    if defects.dead_idx.size or defects.dead_columns.size:
+        bias_dn = np.uint16(min(max(round(cfg.dark_offset_dn), 0), max_dn))
+        frame.reshape(-1)[defects.dead_idx] = bias_dn
+        frame[:, defects.dead_columns] = bias_dn
+    return frame
+
+
+def _read_lit_parts(
+    signal: np.ndarray, boxes: list[tuple[int, int, int, int]], points: np.ndarray, codes: np.ndarray,
+    cfg: CameraConfig, dark_e: float, max_dn: int,
+) -> np.ndarray:
+    """DN of a frame whose signal is zero outside ``boxes`` and the flat pixels ``points``, all pixels having the
+    same dark charge ``dark_e``: the table of DN per code everywhere, then the boxes and points digitised."""
+    size = signal.shape[0]
     regions = merged_boxes(boxes)
     if sum((r1 - r0) * (c1 - c0) for r0, r1, c0, c1 in regions) > _FULL_FRAME_FRACTION * size * size:
         return digitise(signal, codes, cfg, dark_e, max_dn)  # mostly lit: one pass over the whole frame
@@ -115,7 +142,20 @@ def read_out(
     readout.dark_frame(codes, _dark_dn_table(cfg, dark_e, max_dn), frame)
     for r0, r1, c0, c1 in regions:
         frame[r0:r1, c0:c1] = digitise(signal[r0:r1, c0:c1], codes[r0:r1, c0:c1], cfg, dark_e, max_dn)
-    points = np.concatenate([star_flat, hot_idx])
     if points.size:
-        frame.reshape(-1)[points] = digitise(flat_signal[points], codes.reshape(-1)[points], cfg, dark_e, max_dn)
+        flat = signal.reshape(-1)
+        frame.reshape(-1)[points] = digitise(flat[points], codes.reshape(-1)[points], cfg, dark_e, max_dn)
     return frame
+
+
+def dark_frame(
+    cfg: CameraConfig, exposure_s: float, rng: np.random.Generator, cosmic_rng: np.random.Generator | None = None
+) -> np.ndarray:
+    """A frame taken with the shutter closed for ``exposure_s``: bias, dark current (with its non-uniformity), hot
+    and warm pixels, dead pixels and columns, cosmic rays and read noise, no scene; (H, W) uint16 DN. The same as
+    ``render_frame`` of a blank scene with the same generators."""
+    if not (math.isfinite(exposure_s) and exposure_s > 0):
+        raise RenderError(f"dark_frame: exposure_s must be a positive number of seconds, got {exposure_s!r}")
+    signal = work_buffer("signal", (cfg.resolution_px, cfg.resolution_px))
+    signal.fill(0.0)
+    return read_out(signal, [], np.empty(0, dtype=np.int64), cfg, exposure_s, rng, cosmic_rng)

@@ -23,14 +23,18 @@ def warm_up() -> None:
     readout.warm_up()
 
 
-def render_frame(scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.random.Generator) -> np.ndarray:
-    """Render one frame: (H, W) uint16 DN within [0, 2^bit_depth - 1]; the noise comes from ``rng``."""
+def render_frame(
+    scene: Scene, cfg: CameraConfig, plume: PlumeConfig, rng: np.random.Generator,
+    cosmic_rng: np.random.Generator | None = None,
+) -> np.ndarray:
+    """Render one frame: (H, W) uint16 DN within [0, 2^bit_depth - 1]; the noise comes from ``rng``, the cosmic rays
+    (when their flux is not zero) from ``cosmic_rng`` (default: ``rng``, after the noise)."""
     size = cfg.resolution_px
     max_dn = (1 << cfg.bit_depth) - 1
     if scene.saturated:
         return np.full((size, size), max_dn, dtype=np.uint16)
     signal, boxes, star_flat = _scene_electrons(scene, cfg, plume)
-    return read_out(signal, boxes, star_flat, cfg, scene.exposure_s, rng)
+    return read_out(signal, boxes, star_flat, cfg, scene.exposure_s, rng, cosmic_rng)
 
 
 def scene_electrons(scene: Scene, cfg: CameraConfig, plume: PlumeConfig) -> np.ndarray:

@@ -11,9 +11,11 @@ from hypothesis import strategies as st
 from scipy import stats
 
 from tests.universe.camera.common import SPHERE, scene
-from universe.camera import NORMAL_QUANTILES, Body, normal_codes, render_frame, scene_electrons
+from scenario import compose
+from scenario.model import Scenario
+from universe.camera import NORMAL_QUANTILES, Body, dark_frame, normal_codes, render_frame, scene_electrons
 from universe.camera.detector import merged_boxes
-from universe.config import CameraConfig, PlumeConfig
+from universe.config import CameraConfig, PlumeConfig, UniverseConfig
 from universe.shapes import ShapeModel
 
 
@@ -130,3 +132,34 @@ def test_frame_moments_follow_the_detector_model_pixel_by_pixel(range_m: float) 
     z = (frame - mean) / sd
     assert abs(z.mean()) < 0.005
     assert z.var() == pytest.approx(1.0, abs=0.01)
+
+
+def test_dark_frame_statistics_follow_the_dark_current_and_its_non_uniformity() -> None:
+    """A 20 s dark frame: mean offset + m T / g, variance (s T / g)^2 + (m T + read^2) / g^2 + 1/12 for a dark current
+    of mean m and pixel-to-pixel spread s (no scene, no hot or warm pixels): the spread recovered to 2 %."""
+    cfg = CameraConfig(hot_pixel_count=0, dark_current_dsnu_e_s=15.0)
+    exposure, g, m, s = 20.0, cfg.gain_e_per_dn, cfg.dark_current_e_s, 15.0
+    frame = dark_frame(cfg, exposure, np.random.default_rng(4)).astype(float)
+    assert frame.mean() == pytest.approx(cfg.dark_offset_dn + m * exposure / g, abs=0.05)
+    shot_read = (m * exposure + cfg.read_noise_e**2) / g**2 + 1 / 12
+    assert frame.var() == pytest.approx((s * exposure / g) ** 2 + shot_read, rel=0.02)
+    assert math.sqrt(frame.var() - shot_read) * g / exposure == pytest.approx(s, rel=0.02)
+
+
+def test_dark_frame_is_a_blank_frame_and_the_universe_keeps_one_per_run() -> None:
+    """dark_frame is the frame of a blank scene with the same generators; the universe's dark frame is drawn once
+    from its own stream (the same on every call, the same for the same seed) and leaves the camera's stream alone."""
+    cfg = CameraConfig(dark_current_dsnu_e_s=15.0, warm_pixel_fraction=1e-3, dead_column_count=1,
+                       cosmic_ray_flux_cm2_s=5.0)
+    a = dark_frame(cfg, 0.5, np.random.default_rng(1), np.random.default_rng(2))
+    b = render_frame(scene(exposure_s=0.5, blank=True), cfg, PlumeConfig(), np.random.default_rng(1),
+                     np.random.default_rng(2))
+    assert np.array_equal(a, b)
+    sc = Scenario(name="dark", seed=5, universe=UniverseConfig(camera=cfg))
+    u, v = compose.universe(sc), compose.universe(sc)
+    camera_state = u.rng["camera"].bit_generator.state
+    first = u.dark_frame(0.5)
+    assert u.dark_frame(0.5) is first and np.array_equal(first, v.dark_frame(0.5))
+    assert u.rng["camera"].bit_generator.state == camera_state
+    assert not np.array_equal(u.dark_frame(), first)  # another exposure, another frame
+    assert first.dtype == np.uint16 and first.shape == (1024, 1024) and int(first.max()) <= 4095
