@@ -1,4 +1,7 @@
-"""Configuration of the on-board software: rates, gains and mode thresholds, all in on-board time."""
+"""Configuration of the on-board software: rates, gains and mode thresholds, all in on-board time.
+
+"paper" in a description is the LICIACube navigation paper.
+"""
 
 from __future__ import annotations
 

@@ -62,11 +62,18 @@ def scene_at(u: Universe, exposure_s: float) -> Scene:
     )
 
 
-def render_at(u: Universe, exposure_s: float) -> tuple[np.ndarray, tuple[float, float], tuple[float, float]]:
+def render_at(
+    u: Universe, exposure_s: float
+) -> tuple[np.ndarray, tuple[float, float] | None, tuple[float, float] | None]:
     """Render the frame the camera takes now (uint16, values within the bit depth), with the true pinhole
-    (col, row) of the centres of Dimorphos and Didymos in it (NaN behind the camera)."""
+    (col, row) of the centres of Dimorphos and Didymos in it (None when the centre has no pixel: behind the camera,
+    or so near the image plane that its projection is not a finite number)."""
     scene = scene_at(u, exposure_s)
-    pixels = render_frame(scene, u.cfg.camera, u.cfg.plume, u.rng["camera"])
-    dim = project_inertial(scene, u.cfg.camera, scene.bodies[1].centre_inertial_m)
-    did = project_inertial(scene, u.cfg.camera, scene.bodies[0].centre_inertial_m)
-    return pixels, dim, did
+    pixels = render_frame(scene, u.cfg.camera, u.cfg.plume, u.rng["camera"], u.rng["cosmic_rays"])
+    return pixels, _pixel(scene, u, 1), _pixel(scene, u, 0)
+
+
+def _pixel(scene: Scene, u: Universe, body: int) -> tuple[float, float] | None:
+    """Pinhole (col, row) of a body's centre, None if it has no finite one."""
+    col, row = project_inertial(scene, u.cfg.camera, scene.bodies[body].centre_inertial_m)
+    return (col, row) if math.isfinite(col) and math.isfinite(row) else None

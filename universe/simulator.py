@@ -23,6 +23,7 @@ from contracts.messages import (
     TruthRecord,
 )
 from contracts.seeding import rng_streams
+from universe.camera import dark_frame
 from universe.config import FaultConfig, UniverseConfig
 from universe.dynamics import AttitudeState, SpacecraftDynamics
 from universe.geometry import FlybyGeometry
@@ -125,6 +126,7 @@ class Universe:
         self._history = self._approach_history()
         self._obt_s = self.oscillator.obt_s(self.t_s)
         self.shapes = body_shapes(seed)
+        self._dark_frames: dict[float, np.ndarray] = {}
 
     def _approach_history(self) -> list[tuple[float, bytes]]:
         """The service 9 time reports of the approach before the run, with the true time each reached ground.
@@ -239,6 +241,17 @@ class Universe:
             los_dimorphos_inertial=_vec(ts.los_dimorphos_inertial), los_didymos_inertial=_vec(ts.los_didymos_inertial),
             dimorphos_camera=_vec(ts.los_dimorphos_camera), range_didymos_m=ts.range_to_didymos_m,
         ))
+
+    def dark_frame(self, exposure_s: float | None = None) -> np.ndarray:
+        """The run's dark frame: one frame with the shutter closed (``exposure_s``, default the camera's), uint16 DN,
+        drawn from its own random stream on the first call for that exposure and the same array on every later one.
+        What the flight software would subtract to remove bias, dark current and warm pixels."""
+        t = self.cfg.camera.exposure_s if exposure_s is None else float(exposure_s)
+        if t not in self._dark_frames:
+            frame = dark_frame(self.cfg.camera, t, self.rng["dark_frame"])
+            frame.setflags(write=False)
+            self._dark_frames[t] = frame
+        return self._dark_frames[t]
 
     def take_log(self) -> list[str]:
         """Log lines produced since the last call (fault starts and ends, lost frames)."""

@@ -12,10 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from contracts.messages import FrameRequest, StepReply, StepRequest, TruthRecord
+from contracts.messages import FrameRequest, GroundStep, StepReply, StepRequest, TruthRecord, decode, encode
 from scenario.model import Scenario
 from universe.camera import Body, render_frame
 from universe.config import CameraConfig, PlumeConfig, SpacecraftConfig, UniverseConfig
+from universe.dynamics import AttitudeState
 from universe.scene import scene_at
 from universe.shapes import ShapeModel
 from universe.simulator import pointing_attitude
@@ -227,3 +228,44 @@ def test_frame_shows_dimorphos_where_its_truth_pixel_says() -> None:
     # the period's motion of the line of sight across the fixed camera, closed form for a straight line: v b / r^2
     motion_px = 7000.0 * 55_000.0 / range_m**2 * 0.1 * F_1024
     assert motion_px > 2 * r_max_px
+
+
+in_ball4 = st.tuples(*[st.floats(-1.0, 1.0)] * 4).filter(lambda v: 0.01 < sum(c * c for c in v) <= 1.0)
+in_ball3 = st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda v: sum(c * c for c in v) <= 1.0)
+
+
+def finite_or_absent(record: TruthRecord) -> bool:
+    """Every number of a truth record is finite; optional ones may be absent (None)."""
+    values: list[object] = []
+    for v in record.model_dump().values():
+        values.extend(v if isinstance(v, (tuple, list)) else [v])
+    return all(v is None or isinstance(v, (bool, int)) or math.isfinite(v) for v in values)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    q=in_ball4,
+    rate=in_ball3,
+    t0_s=st.floats(-150.0, 280.0),
+    ca_km=st.sampled_from([55.0, 2.0, 1.19, 0.3, 0.05]),
+)
+def test_any_attitude_and_rate_gives_valid_frames_and_decodable_finite_truth(q, rate, t0_s, ca_km) -> None:
+    """Attitudes uniform over rotations and rates up to 1 rad/s, set on the universe's state on a flyby passing from
+    55 km down to inside Didymos: every frame on the bus has its size and bit depth, and every truth record is finite
+    or absent and survives the bus (encode and decode of the ground step)."""
+    sc = scenario(seed=2, start_s=t0_s, end_s=t0_s + 0.4, flyby={"ca_distance_km": ca_km})
+    u = compose.universe(sc)
+    u.begin()
+    attitude = np.asarray(q) / np.linalg.norm(q)
+    for k in range(3):
+        u.state = AttitudeState(q=attitude, omega_rad_s=np.asarray(rate), wheel_speed_rad_s=np.zeros(3))
+        request, blob = u.advance(reply(k, frame=True))
+        meta = request.frame
+        assert meta is not None and len(blob) == 2 * meta.width * meta.height
+        pixels = np.frombuffer(blob, dtype="<u2")
+        assert meta.width == meta.height == 1024 and int(pixels.max()) <= 4095
+    step = u.ground_step()
+    decoded, _ = decode(GroundStep, encode(step))
+    assert decoded.truth == step.truth and len(step.truth) == 4
+    assert all(finite_or_absent(r) for r in decoded.truth)
+    assert sum(r.frame_id is not None for r in decoded.truth) == 3
