@@ -38,6 +38,8 @@ def run_archive(run_dir: Path) -> Iterator[Archive]:
     db, tm_bin = Path(run_dir) / "archive.sqlite", Path(run_dir) / "tm.bin"
     if not Path(run_dir).is_dir():
         raise TmQueryError(f"{run_dir}: no such folder")
+    if not db.is_file() and not tm_bin.is_file():
+        raise TmQueryError(f"{run_dir}: no archive.sqlite and no tm.bin (is this a run folder?)")
     try:
         archive = Archive.read_only(db)
     except ArchiveError as exc:

@@ -253,7 +253,8 @@ def test_any_attitude_and_rate_gives_valid_frames_and_decodable_finite_truth(q, 
     """Attitudes uniform over rotations and rates up to 1 rad/s, set on the universe's state on a flyby passing from
     55 km down to inside Didymos: every frame on the bus has its size and bit depth, and every truth record is finite
     or absent and survives the bus (encode and decode of the ground step)."""
-    sc = scenario(seed=2, start_s=t0_s, end_s=t0_s + 0.4, flyby={"ca_distance_km": ca_km})
+    sc = scenario(seed=2, start_s=t0_s, end_s=t0_s + 0.4, flyby={"ca_distance_km": ca_km},
+                  uncertainty={"ca_distance_sigma_km": ca_km / 10})  # the on-board grid must fit
     u = compose.universe(sc)
     u.begin()
     attitude = np.asarray(q) / np.linalg.norm(q)
