@@ -15,7 +15,7 @@ import numpy as np
 
 from contracts.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
 from contracts.steplog import StepLogWriter
-from ground.segment import GroundSegment, ReceivedPacket
+from ground.segment import GroundSegment, ReceivedPacket, TimelineUpload
 from obsw.software import FlightSoftware
 from scenario import compose
 from scenario.model import Scenario
@@ -32,6 +32,7 @@ class InProcessRun:
     log: list[str] = field(default_factory=list)
     frames: int = 0
     record_error: str | None = None  # why the step record stopped, if it did
+    uploads: list[TimelineUpload] = field(default_factory=list)  # what ground did with each timeline row
 
 
 def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through_codec: bool = False,
@@ -48,6 +49,7 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
         record, {"scenario": scenario.name, "seed": scenario.seed, "obsw": fsw.cfg.model_dump(mode="json")})
     try:
         _loop(sim, fsw, ground, out, through_codec, on_step, max_steps, writer)
+        out.uploads = list(ground.uploads)
     finally:
         if writer is not None:
             writer.close()
