@@ -55,7 +55,8 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
             request, blob = decode(StepRequest, encode(request, blob))
         frame = None
         if request.frame is not None:
-            frame = np.frombuffer(blob, dtype="<u2").reshape(request.frame.height, request.frame.width)
+            if request.frame.measurement is None:
+                frame = np.frombuffer(blob, dtype="<u2").reshape(request.frame.height, request.frame.width)
             out.frames += 1
         reply = fsw.step(request, frame)
         if through_codec:
