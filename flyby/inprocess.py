@@ -77,7 +77,8 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
             request, blob = decode(StepRequest, encode(request, blob))
         frame = None
         if request.frame is not None:
-            frame = np.frombuffer(blob, dtype="<u2").reshape(request.frame.height, request.frame.width)
+            if request.frame.measurement is None:
+                frame = np.frombuffer(blob, dtype="<u2").reshape(request.frame.height, request.frame.width)
             out.frames += 1
         reply = fsw.step(request, frame)
         if through_codec:

@@ -26,9 +26,15 @@ log = logging.getLogger("obsw")
 
 
 def frame_pixels(req: StepRequest, blob: bytes) -> np.ndarray | None:
-    """The camera frame carried in the blob of ``req``, as a uint16 array, or None."""
+    """The camera frame carried in the blob of ``req``, as a uint16 array, or None (no frame, or a centroid-level
+    measurement instead of pixels)."""
     meta = req.frame
     if meta is None:
+        return None
+    if meta.measurement is not None:  # centroid-level fidelity: no pixels travel
+        if blob:
+            raise ValueError(f"StepRequest {req.step}: frame {meta.frame_id} carries a measurement and {len(blob)} "
+                             "bytes of pixels")
         return None
     expected = meta.width * meta.height * 2
     if len(blob) != expected:
