@@ -8,7 +8,8 @@ One file per run, ``obsw_steps.rec``: a gzip stream (RFC 1952) of records ``[kin
   metadata), without its blob;
 - ``F``: the camera frame of the preceding request: its 16-bit little-endian pixels as two byte planes, every low
   octet then every high octet (the high plane of a 12-bit frame is nearly constant, so deflate packs the planes
-  about 20 % smaller than interleaved pixels);
+  about 20 % smaller than interleaved pixels); absent for a frame without pixels (centroid-level fidelity: the
+  request's frame metadata carries the measurement);
 - ``R``: the ``StepReply`` to the preceding request, as on the bus (torques, frame request, telemetry packets).
 
 A file cut short (a node killed mid-run) reads up to its last complete step. Writing compresses in a thread of its
@@ -121,7 +122,7 @@ class StepLogWriter:
 
     def _write_step(self, request: StepRequest, blob: bytes, reply: StepReply) -> None:
         parts = [_record(b"Q", encode(request))]
-        if request.frame is not None:
+        if request.frame is not None and blob:
             parts.append(_record(b"F", frame_planes(blob)))
         parts.append(_record(b"R", encode(reply)))
         self._write(b"".join(parts))

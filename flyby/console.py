@@ -86,7 +86,7 @@ def console(args: argparse.Namespace) -> int:
     if args.dry_run is not None:
         from flyby.dryrun import run_dry_run
 
-        return run_dry_run(args.scenario, Path(args.dry_run), args.trajectory, args.jobs)
+        return run_dry_run(args.scenario, Path(args.dry_run), args.trajectory, args.jobs, fidelity=args.fidelity)
     if not args.connect:
         print("flyby ground: give --connect ENDPOINT (the ground node's) or --run RUN_DIR", file=sys.stderr)
         return EXIT_USAGE
@@ -161,7 +161,7 @@ def _rehearse_first(inbox: queue.SimpleQueue[object], args: argparse.Namespace) 
             print(f"dry run first, from ground's UTC {msg.sim_time_s:.1f} s (the upload is sent only if it passes)",
                   flush=True)
             code = run_dry_run(args.scenario, Path(args.upload_timeline), args.trajectory, args.jobs,
-                               upload_utc_s=msg.sim_time_s)
+                               upload_utc_s=msg.sim_time_s, fidelity=args.fidelity)
             if code != EXIT_OK:
                 print("NOT UPLOADED: the dry run predicts a refused command or a failed requirement", flush=True)
             return code
@@ -234,6 +234,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     g.add_argument("--trajectory", type=Path, default=None, metavar="FILE",
                    help="dry run against this trajectory file (as --upload-trajectory) instead of ground's belief")
     g.add_argument("--jobs", type=int, default=2, help="dry-run cases run at a time, in separate processes")
+    g.add_argument("--fidelity", choices=["centroid", "image"], default="centroid",
+                   help="dry run with the imaging chain's output modelled (centroid, fast) or frames rendered (image)")
     g.add_argument("--watch", action="store_true", help="print housekeeping, events and verifications as they arrive")
     g.add_argument("--seconds", type=float, default=0.0, help="stop watching after this long (0: until Ctrl-C)")
     g.add_argument("--timeout", type=float, default=15.0, help="longest wait for the ground node, s")

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from contracts import pus
-from contracts.messages import FrameMeta, FrameRequest, SensorData, StepReply, StepRequest
+from contracts.messages import CentroidMeasurement, FrameMeta, FrameRequest, SensorData, StepReply, StepRequest
 from contracts.steplog import StepLog, StepLogError, StepLogWriter, frame_from_planes, frame_planes
 
 
@@ -22,6 +22,11 @@ def _steps(n: int, every_frame: int = 3) -> list[tuple[StepRequest, bytes, StepR
     out = []
     for k in range(n):
         meta, blob = None, b""
+        if k % every_frame == 2:  # centroid-level fidelity: a measurement, no pixels
+            m = CentroidMeasurement(dimorphos_col_row=(500.25, 511.5), dimorphos_area_px=30.0, didymos_col_row=None,
+                                    didymos_area_px=0.0)
+            meta = FrameMeta(frame_id=k, obt_s=100.0 + 0.1 * k, width=1024, height=1024, bit_depth=12,
+                             exposure_s=0.01, measurement=m)
         if k % every_frame == 1:
             px = rng.integers(0, 4096, size=(16, 24), dtype=np.uint16)
             meta = FrameMeta(frame_id=k, obt_s=100.0 + 0.1 * k, width=24, height=16, bit_depth=12, exposure_s=0.01)
@@ -39,7 +44,8 @@ def _steps(n: int, every_frame: int = 3) -> list[tuple[StepRequest, bytes, StepR
 
 @pytest.mark.parametrize("threaded", [True, False])
 def test_round_trip(tmp_path: Path, threaded: bool) -> None:
-    """Every request, frame and reply reads back equal to what was written, in order, with the header."""
+    """Every request, frame and reply reads back equal to what was written, in order, with the header; a frame
+    without pixels (a centroid-level measurement) reads back as its metadata and no pixels."""
     steps = _steps(20)
     path = tmp_path / "r.rec"
     with StepLogWriter(path, {"obsw": {"apid": 193}, "scenario": "s"}, threaded=threaded) as w:
