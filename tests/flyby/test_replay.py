@@ -108,3 +108,14 @@ def test_folder_without_record_is_refused(tmp_path: Path, capsys: pytest.Capture
     """A run folder without a record exits 2 naming the missing file."""
     assert main(["replay", str(tmp_path)]) == EXIT_CONFIG
     assert STEP_RECORD in capsys.readouterr().err
+
+
+def test_centroid_level_record_replays_identically(tmp_path: Path) -> None:
+    """A centroid-level run (a campaign's fidelity: measurements instead of pixels) records no pixels and replays
+    identically."""
+    scenario, timeline = load_run_inputs(NOMINAL)
+    scenario = scenario.model_copy(update={"universe": scenario.universe.model_copy(update={"fidelity": "centroid"})})
+    out = run_in_process(scenario, timeline, max_steps=STEPS, record=tmp_path / STEP_RECORD)
+    assert out.record_error is None and out.frames > 0
+    result = replay(tmp_path)
+    assert result.identical and result.replayed_steps == STEPS
