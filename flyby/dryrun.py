@@ -20,12 +20,15 @@ from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from analysis.runfolder import RunData
 from analysis.scoring import RunFigures, score_run
 from analysis.telemetry import decoded_telemetry
 from analysis.truth import Truth
 from contracts import pus
 from contracts.errors import ScenarioError
+from contracts.messages import StepReply, StepRequest
 from flyby.inprocess import run_in_process
 from ground.config import FlybyBelief, ReportConfig
 from ground.segment import RowUpload
@@ -190,7 +193,7 @@ def rehearse_case(sc: Scenario, timeline: Timeline, belief: FlybyBelief, case: C
     downlink: list[bytes] = []
     insert_seqs: set[int] = set()
 
-    def on_step(req, reply, frame) -> None:  # type: ignore[no-untyped-def]
+    def on_step(req: StepRequest, reply: StepReply, frame: np.ndarray | None) -> None:
         downlink.extend(reply.downlink)
         for raw in req.uplink:
             try:
@@ -261,7 +264,7 @@ def case_lines(r: CaseResult, timeline: Timeline, sc: Scenario, number: str) -> 
     lines = [f"{head}: {verdict}"]
     table = [("row", "command", "uploaded for", "release OBT s", "release UTC", "vs true C/A", "outcome")]
     for c in r.commands:
-        tag = _vs_ca(c.ca_offset_s) + " (ground's C/A)" if c.ca_offset_s is not None else f"OBT {c.uploaded_obt_s:.3f} s"
+        tag = f"OBT {c.uploaded_obt_s:.3f} s" if c.ca_offset_s is None else f"{_vs_ca(c.ca_offset_s)} (ground's C/A)"
         rel = "-" if c.release_obt_s is None else _vs_ca(c.release_obt_s - offset - r.true_ca_utc_s)
         table.append((str(c.row), _command_text(timeline, c.row), tag,
                       "-" if c.release_obt_s is None else f"{c.release_obt_s:.3f}", c.release_utc or "-", rel,

@@ -48,7 +48,8 @@ def _start(node: str, conf, scenario: Scenario, args: argparse.Namespace) -> int
         from obsw.node import main as obsw_main
 
         return obsw_main(conf, compose.flight_software(scenario), scenario.bus, args.run_id,
-                         record=args.out / STEP_RECORD, record_header={"scenario": scenario.name, "seed": scenario.seed})
+                         record=args.out / STEP_RECORD,
+                         record_header={"scenario": scenario.name, "seed": scenario.seed})
     if node == "universe":
         from universe.node import main as universe_main
 

@@ -100,7 +100,8 @@ def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = (
         try:
             reply = fsw.step(req, st.frame)
         except Exception as exc:  # noqa: BLE001 - a changed build that raises is a finding, reported as one
-            out.crash = f"step {req.step}, OBT {req.obt_s:.3f} s: the flight software raised {type(exc).__name__}: {exc}"
+            out.crash = (f"step {req.step}, OBT {req.obt_s:.3f} s: the flight software raised "
+                         f"{type(exc).__name__}: {exc}")
             break
         fsw.take_log()
         out.replayed_steps += 1

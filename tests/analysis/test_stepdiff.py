@@ -58,7 +58,8 @@ def test_rows_count_first_and_largest() -> None:
     assert math.isclose(t.largest or 0, 3.0) and t.largest_step == 3
     assert (COMMANDS, "wheel_torque_nm[1]") not in rows
     hk = "Housekeeping [3,25]"
-    assert rows[(hk, "rate_rad_s[2]")].first_step == 4 and math.isclose(rows[(hk, "rate_rad_s[2]")].largest or 0, 0.15, abs_tol=1e-6)
+    rate = rows[(hk, "rate_rad_s[2]")]
+    assert rate.first_step == 4 and math.isclose(rate.largest or 0, 0.15, abs_tol=1e-6)
     assert rows[(hk, "mode")].largest is None and rows[(hk, "mode")].first_replayed == pus.Mode.SAFE
     ev = next(p for (pk, par), p in rows.items() if pk.startswith("TargetLostEvent") and par == "(packet)")
     assert (ev.first_recorded, ev.first_replayed) == (ABSENT, "sent")

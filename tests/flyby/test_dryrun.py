@@ -50,7 +50,8 @@ def test_case_world_is_grounds_belief_moved_by_the_case(tmp_path: Path) -> None:
         world = rehearsal_scenario(sc, belief, case)
         f = world.universe.flyby
         assert f.ca_time_s == pytest.approx(belief.ca_utc_s + case.time_sigma * belief.ca_time_sigma_s)
-        assert f.ca_distance_km == pytest.approx(belief.ca_distance_km + case.distance_sigma * belief.ca_distance_sigma_km)
+        far = case.distance_sigma * belief.ca_distance_sigma_km
+        assert f.ca_distance_km == pytest.approx(belief.ca_distance_km + far)
         seen = compose.ground_belief(world)
         assert seen.ca_utc_s == pytest.approx(belief.ca_utc_s, abs=1e-9)
         assert seen.ca_distance_km == pytest.approx(belief.ca_distance_km, abs=1e-9)
@@ -66,7 +67,9 @@ def test_early_knowledge_is_flagged(capsys: pytest.CaptureFixture[str]) -> None:
     sc = load_scenario(EARLY)
     timeline = load_timeline(TIMELINE)
     g = sc.ground
-    ca = sc.universe.flyby.ca_time_s + sc.universe.uncertainty.ca_time_offset_sigma * sc.universe.uncertainty.ca_time_sigma_s
+    unc = sc.universe.uncertainty
+    assert unc.ca_time_offset_sigma is not None
+    ca = sc.universe.flyby.ca_time_s + unc.ca_time_offset_sigma * unc.ca_time_sigma_s
     reach = sc.universe.start_s + g.link.one_way_light_time_s + g.upload_margin_s
     late = [row for row, off in enumerate(_ca_offsets(timeline), start=1) if ca + off < reach]
     assert late == [1, 2]  # the C/A-240 s pair: the case this scenario reproduces

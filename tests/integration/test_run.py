@@ -70,7 +70,8 @@ def test_obsw_record_holds_the_downlink_and_replays(short_runs: tuple[Path, Path
     steps = list(log.steps())
     assert not log.truncated and len(steps) == 300 and all(s.reply is not None for s in steps)
     assert any(s.frame is not None for s in steps)
-    assert b"".join(p for s in steps for p in s.reply.downlink) == (run / "tm.bin").read_bytes()  # type: ignore[union-attr]
+    sent = b"".join(p for s in steps for p in s.reply.downlink)  # type: ignore[union-attr]
+    assert sent == (run / "tm.bin").read_bytes()
     r = flyby("replay", str(run), "--out", str(run / "replay"))
     assert r.returncode == 0 and "IDENTICAL" in r.stdout, r.stdout + r.stderr
 
