@@ -36,8 +36,22 @@ class SensorData(Frozen):
     wheel_speed_rad_s: tuple[float, ...]
 
 
+class CentroidMeasurement(Frozen):
+    """Centroid-level fidelity: what the imaging chain would report of a frame, sent instead of its pixels.
+
+    Positions are (col, row) at the camera's full resolution, pixel centres at integer coordinates (the on-board
+    software bins them as it bins pixels); None where the chain would not report the body.
+    """
+
+    dimorphos_col_row: tuple[float, float] | None = Field(description="Dimorphos centroid, full-resolution px")
+    dimorphos_area_px: float = Field(ge=0, description="lit area of Dimorphos, full-resolution px (0: not reported)")
+    didymos_col_row: tuple[float, float] | None = Field(description="Didymos centroid, full-resolution px")
+    didymos_area_px: float = Field(ge=0, description="lit area of Didymos, full-resolution px (0: not reported)")
+
+
 class FrameMeta(Frozen):
-    """Metadata of a camera frame whose pixels travel in the message blob (uint16, row-major)."""
+    """Metadata of a camera frame whose pixels travel in the message blob (uint16, row-major); at centroid-level
+    fidelity ``measurement`` replaces the pixels and the blob is empty."""
 
     frame_id: int = Field(ge=0)
     obt_s: float = Field(description="on-board time of the middle of the exposure, s")
@@ -45,6 +59,8 @@ class FrameMeta(Frozen):
     height: int = Field(gt=0)
     bit_depth: int = Field(ge=8, le=16)
     exposure_s: float = Field(gt=0)
+    measurement: CentroidMeasurement | None = Field(
+        None, description="centroid-level fidelity: the imaging chain's output modelled by the universe, no pixels")
 
 
 class FrameRequest(Frozen):

@@ -1,9 +1,13 @@
-"""``flyby ground``: an operator's console on a running ground node, or on a recorded run.
+"""``flyby ground``: an operator's console on a running ground node, or on a recorded run, and the timeline dry run.
 
 Live: it joins the run's bus (``--connect`` the ground node's endpoint, ``--run-id`` as printed by ``flyby run``),
 sends one request (a command, a timeline file, a trajectory file) and prints ground's answer, and with ``--watch``
-prints the housekeeping, events and verification reports as ground receives them.
+prints the housekeeping, events and verification reports as ground receives them. ``--upload-timeline FILE
+--dry-run-first --scenario S`` rehearses the timeline from ground's current time first and uploads it only if the
+rehearsal passes.
 Recorded: ``--run DIR`` prints the same lines from a run folder's archive.
+Dry run: ``--dry-run TIMELINE --scenario S [--trajectory FILE]`` rehearses a timeline before uplink
+(``flyby.dryrun``): exit 0 if every command would be executed and every requirement hold, 4 if not.
 """
 
 from __future__ import annotations
@@ -22,10 +26,11 @@ from contracts.bus import Keys, session_config
 from contracts.exitcodes import ExitCode
 from contracts.clock import WallClock
 from contracts.errors import DecodeError
-from contracts.messages import OperatorCommand, OperatorReply, TmLine, decode
+from contracts.messages import OperatorCommand, OperatorReply, Status, TmLine, decode
 from contracts.runtime import Attachment
 
 EXIT_OK, EXIT_REFUSED, EXIT_USAGE, EXIT_NO_GROUND = ExitCode.OK, ExitCode.INTERNAL, ExitCode.INVALID_INPUT, ExitCode.PEER_FAILED
+EXIT_REHEARSAL_FAILED = ExitCode.CHECK_FAILED
 
 
 def _key_value(items: list[str]) -> dict[str, object]:
@@ -73,6 +78,16 @@ def console(args: argparse.Namespace) -> int:
     """Run the ``flyby ground`` command."""
     if args.run is not None:
         return replay(args.run)
+    if (args.dry_run is not None or args.dry_run_first) and args.scenario is None:
+        print("flyby ground: a dry run needs --scenario S (ground's belief, link and requirements)", file=sys.stderr)
+        return EXIT_USAGE
+    if args.dry_run_first and not args.upload_timeline:
+        print("flyby ground: --dry-run-first goes with --upload-timeline FILE", file=sys.stderr)
+        return EXIT_USAGE
+    if args.dry_run is not None:
+        from flyby.dryrun import run_dry_run
+
+        return run_dry_run(args.scenario, Path(args.dry_run), args.trajectory, args.jobs, fidelity=args.fidelity)
     if not args.connect:
         print("flyby ground: give --connect ENDPOINT (the ground node's) or --run RUN_DIR", file=sys.stderr)
         return EXIT_USAGE
@@ -94,7 +109,8 @@ def console(args: argparse.Namespace) -> int:
             return cb
 
         subs = [session.declare_subscriber(keys.operator_reply, on(OperatorReply)),
-                session.declare_subscriber(keys.tm_lines, on(TmLine))]
+                session.declare_subscriber(keys.tm_lines, on(TmLine)),
+                session.declare_subscriber(keys.status("ground"), on(Status))]
         bus = Attachment(session, keys, "operator", WallClock(), logging.getLogger("operator"))
         bus.watch_peers()
         try:
@@ -103,6 +119,10 @@ def console(args: argparse.Namespace) -> int:
             print(f"flyby ground: {exc}", file=sys.stderr)
             return EXIT_NO_GROUND
         code = EXIT_OK
+        if request is not None and args.dry_run_first:
+            code = _rehearse_first(inbox, args)
+            if code != EXIT_OK:
+                return code
         if request is not None:
             reply = _wait_reply(inbox, request, bus, args.timeout, args.watch)
             if reply is None:
@@ -125,6 +145,29 @@ def console(args: argparse.Namespace) -> int:
                 pass
         del subs
     return code
+
+
+def _rehearse_first(inbox: queue.SimpleQueue[object], args: argparse.Namespace) -> int:
+    """Dry-run the timeline from ground's current UTC (its status); EXIT_OK if it passes, else why not."""
+    from flyby.dryrun import run_dry_run
+
+    clock = WallClock()
+    end = clock.now() + args.timeout
+    while clock.now() < end:
+        try:
+            msg = inbox.get(timeout=max(0.0, end - clock.now()))
+        except queue.Empty:
+            break
+        if isinstance(msg, Status) and msg.node == "ground":
+            print(f"dry run first, from ground's UTC {msg.sim_time_s:.1f} s (the upload is sent only if it passes)",
+                  flush=True)
+            code = run_dry_run(args.scenario, Path(args.upload_timeline), args.trajectory, args.jobs,
+                               upload_utc_s=msg.sim_time_s, fidelity=args.fidelity)
+            if code != EXIT_OK:
+                print("NOT UPLOADED: the dry run predicts a refused command or a failed requirement", flush=True)
+            return code
+    print(f"flyby ground: no status from ground within {args.timeout:g} s: cannot dry-run", file=sys.stderr)
+    return EXIT_NO_GROUND
 
 
 def _wait_reply(inbox: queue.SimpleQueue[object], request: OperatorCommand, bus: Attachment, timeout_s: float,
@@ -182,6 +225,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     what.add_argument("--upload-timeline", metavar="FILE", help="a timeline file (YAML or CSV)")
     what.add_argument("--upload-trajectory", metavar="FILE",
                       help="a trajectory file: ca_time_utc or ca_time_s, ca_distance_km, optional sigmas")
+    what.add_argument("--dry-run", metavar="TIMELINE",
+                      help="rehearse a timeline in process against ground's belief and its 3-sigma corners, before "
+                           "uplink (needs --scenario; exit 0 pass, 4 a refused command or a failed requirement)")
+    g.add_argument("--dry-run-first", action="store_true",
+                   help="with --upload-timeline: rehearse it from ground's current time, upload only if it passes")
+    g.add_argument("--scenario", type=Path, default=None, metavar="S",
+                   help="the run's scenario: ground's belief, link and requirements for a dry run")
+    g.add_argument("--trajectory", type=Path, default=None, metavar="FILE",
+                   help="dry run against this trajectory file (as --upload-trajectory) instead of ground's belief")
+    g.add_argument("--jobs", type=int, default=2, help="dry-run cases run at a time, in separate processes")
+    g.add_argument("--fidelity", choices=["centroid", "image"], default="centroid",
+                   help="dry run with the imaging chain's output modelled (centroid, fast) or frames rendered (image)")
     g.add_argument("--watch", action="store_true", help="print housekeeping, events and verifications as they arrive")
     g.add_argument("--seconds", type=float, default=0.0, help="stop watching after this long (0: until Ctrl-C)")
     g.add_argument("--timeout", type=float, default=15.0, help="longest wait for the ground node, s")

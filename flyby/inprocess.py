@@ -9,14 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from contracts.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
-from ground.segment import ReceivedPacket
+from contracts.steplog import StepLogWriter
+from ground.segment import GroundSegment, ReceivedPacket, TimelineUpload
+from obsw.software import FlightSoftware
 from scenario import compose
 from scenario.model import Scenario
 from timeline.model import Timeline
+from universe.simulator import Universe
 
 
 @dataclass
@@ -27,17 +31,35 @@ class InProcessRun:
     received: list[ReceivedPacket] = field(default_factory=list)
     log: list[str] = field(default_factory=list)
     frames: int = 0
+    record_error: str | None = None  # why the step record stopped, if it did
+    uploads: list[TimelineUpload] = field(default_factory=list)  # what ground did with each timeline row
 
 
 def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through_codec: bool = False,
                    on_step: Callable[[StepRequest, StepReply, np.ndarray | None], None] | None = None,
-                   max_steps: int | None = None) -> InProcessRun:
+                   max_steps: int | None = None, record: Path | None = None) -> InProcessRun:
     """Run the scenario to its end (or its first ``max_steps`` control periods); ``through_codec`` also encodes and
-    decodes every message, as the bus does."""
+    decodes every message, as the bus does; ``record``: a file to record the flight software's inputs and outputs
+    into, as the OBSW node does (``contracts.steplog``; ``flyby replay`` reads it)."""
     sim = compose.universe(scenario)
     fsw = compose.flight_software(scenario)
     ground = compose.ground_segment(scenario, timeline)
     out = InProcessRun()
+    writer = None if record is None else StepLogWriter(
+        record, {"scenario": scenario.name, "seed": scenario.seed, "obsw": fsw.cfg.model_dump(mode="json")})
+    try:
+        _loop(sim, fsw, ground, out, through_codec, on_step, max_steps, writer)
+        out.uploads = list(ground.uploads)
+    finally:
+        if writer is not None:
+            writer.close()
+            out.record_error = writer.error
+    return out
+
+
+def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProcessRun, through_codec: bool,
+          on_step: Callable[[StepRequest, StepReply, np.ndarray | None], None] | None, max_steps: int | None,
+          writer: StepLogWriter | None) -> None:
 
     def ground_exchange() -> None:
         gs = sim.ground_step()
@@ -55,11 +77,14 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
             request, blob = decode(StepRequest, encode(request, blob))
         frame = None
         if request.frame is not None:
-            frame = np.frombuffer(blob, dtype="<u2").reshape(request.frame.height, request.frame.width)
+            if request.frame.measurement is None:
+                frame = np.frombuffer(blob, dtype="<u2").reshape(request.frame.height, request.frame.width)
             out.frames += 1
         reply = fsw.step(request, frame)
         if through_codec:
             reply, _ = decode(StepReply, encode(reply))
+        if writer is not None:
+            writer.step(request, blob if frame is not None else b"", reply)
         if on_step is not None:
             on_step(request, reply, frame)
         out.log += [f"universe: {x}" for x in sim.take_log()] + [f"obsw: {x}" for x in fsw.take_log()]
@@ -72,4 +97,3 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
         out.received += received
         out.truth += gs.truth
         out.log += [f"ground: {x}" for x in lines]
-    return out

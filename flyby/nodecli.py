@@ -17,6 +17,7 @@ from pathlib import Path
 from contracts.bus import session_config
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
+from contracts.steplog import STEP_RECORD
 from scenario import compose
 from scenario.model import Scenario, load_run_inputs
 
@@ -46,7 +47,9 @@ def _start(node: str, conf, scenario: Scenario, args: argparse.Namespace) -> int
     if node == "obsw":
         from obsw.node import main as obsw_main
 
-        return obsw_main(conf, compose.flight_software(scenario), scenario.bus, args.run_id)
+        return obsw_main(conf, compose.flight_software(scenario), scenario.bus, args.run_id,
+                         record=args.out / STEP_RECORD,
+                         record_header={"scenario": scenario.name, "seed": scenario.seed})
     if node == "universe":
         from universe.node import main as universe_main
 

@@ -8,6 +8,7 @@ it uploads to on-board time with its current OBT-UTC correlation, fitted from th
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 
@@ -28,6 +29,28 @@ class ReceivedPacket:
     header: pus.TmHeader | None
     report: pus.TmReport | None
     error: str | None
+
+
+@dataclass(frozen=True)
+class RowUpload:
+    """What ground did with one timeline row at an upload: the release OBT it resolved, and the sequence count of
+    the row's telecommand inside the schedule insert, or why it refused the row."""
+
+    row: int
+    command: str
+    obt_s: float
+    ca_offset_s: float | None
+    seq_count: int | None
+    refused: str | None
+
+
+@dataclass(frozen=True)
+class TimelineUpload:
+    """One upload of a timeline: when (UTC, s after the epoch), the earliest OBT ground allowed, and every row."""
+
+    utc_s: float
+    not_before_obt_s: float
+    rows: tuple[RowUpload, ...]
 
 
 @dataclass
@@ -57,6 +80,7 @@ class GroundSegment:
         self.state = GroundState()
         self.timeline = timeline
         self._queue: list[pus.TcCommand] = []
+        self.uploads: list[TimelineUpload] = []
 
     def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
         """The nominal trajectory telecommand, its C/A time in OBT by the current correlation."""
@@ -116,21 +140,29 @@ class GroundSegment:
         """The service 11 insert of the timeline, tags in OBT by the current correlation.
 
         Commands that would reach the spacecraft too late (before now + light time + margin) are refused here,
-        each logged with its row, and the rest is uploaded; None if nothing is left.
+        each logged with its row, and the rest is uploaded; None if nothing is left. What happened to every row is
+        appended to ``uploads``.
         """
         timeline = timeline or self.timeline
         assert timeline is not None
         source = self.cfg.timeline_file or "<timeline>"
         not_before = self.correlation.to_obt(utc_s + self.cfg.link.one_way_light_time_s + self.cfg.upload_margin_s)
         kw = dict(epoch_utc=self.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
+        every = resolved_commands(timeline, self.correlation, **kw)
+        why: dict[int, str] = {}
         try:
-            resolved = resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
-        except TimelineError as err:
+            resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
+        except TimelineError as err:  # the rows that would arrive too late, each named by its row
             log.extend(f"timeline command refused: {p}" for p in err.problems)
-            resolved = [r for r in resolved_commands(timeline, self.correlation, **kw) if r.obt_s >= not_before]
-        if not resolved:
-            return None
-        return schedule_insert(resolved, self.cfg.apid, self._next_seq, nominal)
+            why = {int(m.group(1)): p for p in err.problems if (m := re.match(r"row (\d+),", p))}
+        resolved = [r for r in every if r.row not in why]
+        insert = schedule_insert(resolved, self.cfg.apid, self._next_seq, nominal) if resolved else None
+        seqs = {} if insert is None else {r.row: pus.request_id_of(a.tc_packet).seq_count
+                                          for r, a in zip(resolved, insert.activities, strict=True)}
+        self.uploads.append(TimelineUpload(utc_s, not_before, tuple(
+            RowUpload(r.row, r.command.name, r.obt_s, r.ca_offset_s, seqs.get(r.row), why.get(r.row))
+            for r in sorted(every, key=lambda r: r.row))))
+        return insert
 
     def _next_seq(self) -> int:
         seq = self.state.tc_seq

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from contracts.messages import CentroidMeasurement
 from obsw.config import CameraKnowledge, ImagingConfig
 
 MAD_TO_SIGMA = 1.4826  # one Gaussian sigma per median absolute deviation
@@ -636,6 +637,47 @@ def split_diffuse_blobs(
     return [b for b in out if b.label not in replaced]
 
 
+def _offsets(blob: Blob | None, fov_deg: float, n: int) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
+    """(px, rad) offsets of a blob's centroid from the centre of the n x n binned image; (None, None) without one."""
+    if blob is None:
+        return None, None
+    centre = 0.5 * (n - 1)
+    px = (blob.centroid_col_row[0] - centre, blob.centroid_col_row[1] - centre)
+    return px, offset_rad(px, fov_deg, n)
+
+
+def measured_detections(m: CentroidMeasurement, cfg: ImagingConfig, camera: CameraKnowledge = CameraKnowledge()
+                        ) -> Detections:
+    """The detections of a frame at centroid-level fidelity: the bodies the measurement reports, binned like pixels.
+
+    A full-resolution position x becomes (x - (b - 1) / 2) / b at binning b, an area a becomes a / b^2; a body is a
+    blob of that area whose core is the whole blob (the measurement has no brightness, so those fields are 0).
+    """
+    n = cfg.binned_size_px
+    b = camera.resolution_px / n
+
+    def blob(label: int, col_row: tuple[float, float] | None, area_full_px: float) -> Blob | None:
+        if col_row is None:
+            return None
+        c = ((col_row[0] - (b - 1) / 2) / b, (col_row[1] - (b - 1) / 2) / b)
+        area = max(1, round(area_full_px / (b * b)))
+        side = max(1, round(math.sqrt(area)))
+        box = (math.floor(c[0] - side / 2), math.floor(c[1] - side / 2), side, side)
+        return Blob(label=label, area_px=area, centroid_col_row=c, bbox_col_row_w_h=box, mean_dn8=0.0, peak_dn8=0,
+                    elongation=1.0, threshold_dn8=0, core_area_px=area, region_centroid_col_row=c)
+
+    didymos = blob(1, m.didymos_col_row, m.didymos_area_px)
+    dimorphos = blob(2, m.dimorphos_col_row, m.dimorphos_area_px)
+
+    did_px, did_rad = _offsets(didymos, camera.fov_deg, n)
+    dim_px, dim_rad = _offsets(dimorphos, camera.fov_deg, n)
+    return Detections(blobs=tuple(x for x in (didymos, dimorphos) if x is not None), didymos=didymos,
+                      dimorphos=dimorphos, didymos_offset_px=did_px, dimorphos_offset_px=dim_px,
+                      didymos_offset_rad=did_rad, dimorphos_offset_rad=dim_rad, threshold_dn8=0, background_dn8=0,
+                      noise_sigma_dn8=0.0, binned_size_px=n,
+                      pair=(didymos, dimorphos) if didymos is not None and dimorphos is not None else None)
+
+
 def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | None = None,
                   camera: CameraKnowledge = CameraKnowledge()) -> Detections:
     """Return the blobs of a raw frame and the identified Didymos and Dimorphos with their offsets from centre."""
@@ -660,16 +702,8 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     elif dimorphos is None and previous is not None and previous.pair is not None:
         # Dimorphos hidden (merged with Didymos or the plume): keep the last pair so it is found again by continuity
         pair, age = previous.pair, previous.pair_age_frames + 1
-    centre = 0.5 * (n - 1)
-
-    def offsets(b: Blob | None) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
-        if b is None:
-            return None, None
-        px = (b.centroid_col_row[0] - centre, b.centroid_col_row[1] - centre)
-        return px, offset_rad(px, camera.fov_deg, n)
-
-    did_px, did_rad = offsets(didymos)
-    dim_px, dim_rad = offsets(dimorphos)
+    did_px, did_rad = _offsets(didymos, camera.fov_deg, n)
+    dim_px, dim_rad = _offsets(dimorphos, camera.fov_deg, n)
     return Detections(
         blobs=tuple(blobs),
         didymos=didymos,

@@ -34,7 +34,7 @@ from contracts.mode import Mode
 from obsw.config import ObswConfig
 from obsw.control import pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
-from obsw.imaging import Detections, los_body, process_frame
+from obsw.imaging import Detections, los_body, measured_detections, process_frame
 from obsw.modes import CaEstimate, Cause, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.recognition import TrajectoryRecognizer
@@ -144,7 +144,7 @@ class FlightSoftware:
         q, omega = self._attitude(req, dt)
         wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
         wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ omega + wheel_speed)
-        seen = self._image(frame, req) if frame is not None else None
+        seen = self._image(frame, req) if req.frame is not None else None
         self._mode_by_events(obt, seen is not None)
         torque = self._control(obt, dt, q, omega, wheel_h, seen)
         frame_request = self._frame_request(obt)
@@ -305,12 +305,17 @@ class FlightSoftware:
         return min(self._attitude_history, key=lambda e: abs(e[0] - obt_s))[1]
 
     # -- imaging -------------------------------------------------------------------------------------------
-    def _image(self, frame: np.ndarray, req: StepRequest) -> tuple[float, np.ndarray] | None:
+    def _image(self, frame: np.ndarray | None, req: StepRequest) -> tuple[float, np.ndarray] | None:
         """Process a frame; return (exposure OBT s, measured inertial LOS of Dimorphos), or None if not seen."""
-        det = process_frame(frame, self.cfg.imaging, self.detections, self.camera)
-        self.detections = det
         meta = req.frame
         assert meta is not None
+        if frame is not None:
+            det = process_frame(frame, self.cfg.imaging, self.detections, self.camera)
+        elif meta.measurement is not None:  # centroid-level fidelity: the imaging chain's output comes modelled
+            det = measured_detections(meta.measurement, self.cfg.imaging, self.camera)
+        else:
+            return None
+        self.detections = det
         obt = meta.obt_s
         if det.dimorphos is None or det.dimorphos_offset_px is None:
             self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=None, didymos_col_row=_col_row(det.didymos),

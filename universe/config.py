@@ -485,6 +485,51 @@ class ApproachHistoryConfig(Config):
     report_period_s: float = Field(600.0, gt=0, description="time between two time reports of the history, true s")
 
 
+class CentroidModelConfig(Config):
+    """Centroid-level fidelity: the imaging chain's report of a frame modelled from the truth, instead of rendering
+    the frame and running the chain on board (``fidelity: centroid``).
+
+    Per body whose centre projects into the frame: the true pinhole projection of its centre, shifted towards the
+    Sun's side of the image by a fraction of its apparent radius that depends on the phase angle, plus Gaussian
+    noise. Dimorphos is not reported when the gap between its disc and Didymos's is below ``merge_gap_px`` (the
+    chain cannot tell them apart), nor in a dropout; a misidentified Dimorphos is reported where the chain puts
+    Didymos. Positions in full-resolution camera px. Defaults: fitted by ``flyby mc-fit`` on image-level runs of
+    the nominal scenario (README, "Centroid-level fidelity").
+    """
+
+    phase_deg: tuple[float, ...] = Field(
+        (0.0,), min_length=1,
+        description="phase angles of the bias and dropout tables, deg, increasing (linear between, constant beyond)")
+    bias_radius_fraction: tuple[float, ...] = Field(
+        (0.0,), min_length=1,
+        description="centroid shift towards the Sun's side of the image at each phase_deg, fraction of the apparent "
+        "radius")
+    dimorphos_dropout: tuple[float, ...] = Field(
+        (0.0,), min_length=1,
+        description="probability that a visible Dimorphos apart from Didymos is not reported, at each phase_deg")
+    noise_px: float = Field(0.0, ge=0, description="one-sigma centroid noise per axis, full-resolution px")
+    noise_radius_fraction: float = Field(
+        0.0, ge=0, description="one-sigma centroid noise per axis growing with the body, fraction of its apparent radius")
+    merge_gap_px: float = Field(
+        0.0, description="Dimorphos is not reported when the gap between its disc and Didymos's is below this, "
+        "full-resolution px")
+    didymos_dropout: float = Field(0.0, ge=0, le=1, description="probability that a visible Didymos is not reported")
+    misidentification: float = Field(
+        0.0, ge=0, le=1, description="probability that a reported Dimorphos is placed where Didymos is reported")
+
+    @model_validator(mode="after")
+    def _tables(self) -> CentroidModelConfig:
+        n = len(self.phase_deg)
+        for name in ("bias_radius_fraction", "dimorphos_dropout"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"{name}: {len(getattr(self, name))} values for {n} phase_deg")
+        if any(b <= a for a, b in zip(self.phase_deg, self.phase_deg[1:])):
+            raise ValueError("phase_deg: must increase")
+        if any(not 0 <= p <= 1 for p in self.dimorphos_dropout):
+            raise ValueError("dimorphos_dropout: probabilities must be within 0..1")
+        return self
+
+
 class UniverseConfig(Config):
     """Everything the universe simulates."""
 
@@ -507,6 +552,10 @@ class UniverseConfig(Config):
     faults: list[FaultConfig] = Field(default_factory=list, description="faults to inject")
     approach_history: ApproachHistoryConfig = ApproachHistoryConfig()
     link: LinkConfig = Field(LinkConfig(), description="the true deep-space link: light time and data rates")
+    fidelity: Literal["image", "centroid"] = Field(
+        "image", description="image: render each frame and let the on-board imaging chain process it; centroid: send "
+        "the chain's output modelled by centroid_model instead (no pixels, for fast Monte Carlo campaigns)")
+    centroid_model: CentroidModelConfig = CentroidModelConfig()
     save_frames_every: int = Field(
         1, ge=0, description="write every n-th camera frame as an 8-bit 512x512 PNG into the run folder (0: none)"
     )

@@ -28,6 +28,7 @@ from universe.config import FaultConfig, UniverseConfig
 from universe.dynamics import AttitudeState, SpacecraftDynamics
 from universe.geometry import FlybyGeometry
 from universe.link import SpaceLink
+from universe.measurement import measure_at
 from universe.oscillator import Oscillator, clock_jumps_s
 from universe.scene import body_shapes, render_at
 from universe.sensors import Sensors
@@ -218,15 +219,21 @@ class Universe:
         if self.faults.active("frame_lost", self.t_s):
             self._log.append(f"frame lost at t={self.t_s:.2f} s (fault)")
             return None, b""
-        pixels, dim, did = render_at(self, exposure_s)
+        if self.cfg.fidelity == "centroid":  # the imaging chain's output modelled, no pixels
+            measurement, dim, did = measure_at(self, exposure_s)
+            pixels = None
+        else:
+            pixels, dim, did = render_at(self, exposure_s)
+            measurement = None
         self.last_frame = pixels
         # the truth record of this period (already appended) gets the frame's true target positions
         self._truth[-1] = self._truth[-1].model_copy(update={
             "frame_id": self.frame_count, "dimorphos_px": dim, "didymos_px": did})
-        meta = FrameMeta(frame_id=self.frame_count, obt_s=self._obt_s, width=pixels.shape[1], height=pixels.shape[0],
-                         bit_depth=self.cfg.camera.bit_depth, exposure_s=exposure_s)
+        side = self.cfg.camera.resolution_px
+        meta = FrameMeta(frame_id=self.frame_count, obt_s=self._obt_s, width=side, height=side,
+                         bit_depth=self.cfg.camera.bit_depth, exposure_s=exposure_s, measurement=measurement)
         self.frame_count += 1
-        return meta, pixels.astype("<u2", copy=False).tobytes()
+        return meta, b"" if pixels is None else pixels.astype("<u2", copy=False).tobytes()
 
     def _record_truth(self) -> None:
         ts = self.geometry.truth_sample(self.t_s, self.state.q, self._boresight, self.cfg.camera.fov_deg)

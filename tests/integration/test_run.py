@@ -12,6 +12,7 @@ import pytest
 
 from contracts import pus
 from contracts.bus import free_tcp_port
+from contracts.steplog import STEP_RECORD, StepLog
 from tests.integration.conftest import DATA, flyby
 
 pytestmark = pytest.mark.integration
@@ -59,6 +60,20 @@ def test_same_seed_gives_identical_telemetry(short_runs: tuple[Path, Path]) -> N
     a, b = short_runs
     assert (a / "tm.bin").read_bytes() == (b / "tm.bin").read_bytes()
     assert (a / "truth.csv").read_bytes() == (b / "truth.csv").read_bytes()
+
+
+def test_obsw_record_holds_the_downlink_and_replays(short_runs: tuple[Path, Path]) -> None:
+    """The OBSW node's step record holds every period, its replies' packets are the telemetry ground received (in
+    order, byte for byte), and ``flyby replay`` of the run finds it identical (exit 0)."""
+    run = short_runs[0]
+    log = StepLog(run / STEP_RECORD)
+    steps = list(log.steps())
+    assert not log.truncated and len(steps) == 300 and all(s.reply is not None for s in steps)
+    assert any(s.frame is not None for s in steps)
+    sent = b"".join(p for s in steps for p in s.reply.downlink)  # type: ignore[union-attr]
+    assert sent == (run / "tm.bin").read_bytes()
+    r = flyby("replay", str(run), "--out", str(run / "replay"))
+    assert r.returncode == 0 and "IDENTICAL" in r.stdout, r.stdout + r.stderr
 
 
 def test_killed_node_stops_the_others(tmp_path: Path) -> None:

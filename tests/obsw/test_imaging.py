@@ -21,7 +21,8 @@ from tests.obsw.opencv_reference import (
     synthetic_frame,
 )
 
-from obsw.config import ImagingConfig, ObswConfig
+from contracts.messages import CentroidMeasurement
+from obsw.config import CameraKnowledge, ImagingConfig, ObswConfig
 from obsw.imaging import (
     Blob,
     is_diffuse,
@@ -35,6 +36,7 @@ from obsw.imaging import (
     focal_length_px,
     identify_bodies,
     los_body,
+    measured_detections,
     offset_rad,
     otsu_threshold,
     process_frame,
@@ -209,6 +211,23 @@ def test_los_body_agrees_with_offset_angles(col: float, row: float, fov: float) 
     assert v[2] > 0
     assert v[0] / v[2] == pytest.approx(math.tan(ax), abs=1e-12)
     assert v[1] / v[2] == pytest.approx(math.tan(ay), abs=1e-12)
+
+
+@settings(max_examples=50, deadline=None)
+@given(col=st.floats(0, 1023), row=st.floats(0, 1023), side=st.sampled_from([1024, 2048]))
+def test_a_measurement_gives_the_line_of_sight_of_its_full_resolution_pixel(col: float, row: float, side: int) -> None:
+    """A measured full-resolution centroid, binned, gives the pinhole line of sight of that pixel of the full frame,
+    and binned areas are the full-resolution areas over the binning factor squared."""
+    col, row = col * side / 1024, row * side / 1024
+    camera = CameraKnowledge(resolution_px=side)
+    det = measured_detections(CentroidMeasurement(dimorphos_col_row=(col, row), dimorphos_area_px=400.0,
+                                                  didymos_col_row=None, didymos_area_px=0.0), ImagingConfig(), camera)
+    assert det.didymos is None and det.dimorphos is not None and det.binned_size_px == 512
+    centre = (side - 1) / 2
+    expected = los_body(col - centre, row - centre, camera.fov_deg, side)
+    got = los_body(*det.dimorphos_offset_px, camera.fov_deg, det.binned_size_px)
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+    assert det.dimorphos.area_px == round(400.0 / (side / 512) ** 2)
 
 
 def _pair(did_col: float, did_row: float, radius: float, rel: tuple[float, float]) -> tuple[SyntheticBody, ...]:

@@ -9,7 +9,7 @@ from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
 from contracts import pus
-from contracts.messages import FrameMeta, SensorData, StepRequest
+from contracts.messages import CentroidMeasurement, FrameMeta, SensorData, StepRequest
 from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
 from obsw.errors import RejectReason
@@ -192,6 +192,25 @@ def test_frame_line_of_sight_uses_the_attitude_at_exposure() -> None:
     ray = np.array([331.5 - 255.5, 221.5 - 255.5, f_px])
     expected = q_exp.apply(ray / np.linalg.norm(ray))
     assert np.asarray(nav[0].los_inertial) == pytest.approx(expected, abs=1e-6)
+
+
+def test_a_centroid_measurement_takes_the_place_of_the_frame() -> None:
+    """A frame that carries a measurement and no pixels is reported binned, and its LOS is the pinhole ray of the
+    measured full-resolution centroid turned with the attitude of its exposure."""
+    fsw = _fsw()
+    q_exp = Rotation.from_rotvec([0.2, 0.1, -0.4])
+    fsw.step(_request(0, OBT0, q=tuple(q_exp.as_quat())), None)
+    m = CentroidMeasurement(dimorphos_col_row=(663.5, 443.5), dimorphos_area_px=40.0, didymos_col_row=(600.5, 480.5),
+                            didymos_area_px=400.0)
+    meta = FrameMeta(frame_id=0, obt_s=OBT0, width=1024, height=1024, bit_depth=12, exposure_s=0.01, measurement=m)
+    reply = fsw.step(_request(1, OBT0 + DT, q=tuple((q_exp * Rotation.from_rotvec([0, 0.02, 0])).as_quat()),
+                              frame=meta), None)
+    nav = _of(_tm(reply.downlink), pus.NavigationReport)
+    assert len(nav) == 1 and nav[0].dimorphos_col_row == pytest.approx((331.5, 221.5))
+    assert nav[0].didymos_col_row == pytest.approx((300.0, 240.0)) and nav[0].dimorphos_area_px == 10
+    f_px = 512.0 / np.tan(np.radians(ObswConfig().camera.fov_deg / 2))
+    ray = np.array([663.5 - 511.5, 443.5 - 511.5, f_px])
+    assert np.asarray(nav[0].los_inertial) == pytest.approx(q_exp.apply(ray / np.linalg.norm(ray)), abs=1e-6)
 
 
 # --- a short flyby in the loop ------------------------------------------------------------------------------------

@@ -1,0 +1,141 @@
+"""Centroid-level fidelity: the modelled imaging-chain report against the pinhole truth and the model's own rates."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from contracts.messages import FrameRequest, StepReply
+from scenario import compose
+from scenario.model import Scenario
+from universe.camera import Body, Scene
+from universe.config import CameraConfig, CentroidModelConfig, UniverseConfig
+from universe.measurement import body_view, centroid_measurement
+
+CAMERA = CameraConfig()
+PERFECT = dict(phase_deg=(0.0,), bias_radius_fraction=(0.0,), dimorphos_dropout=(0.0,), noise_px=0.0,
+               noise_radius_fraction=0.0, merge_gap_px=0.0, didymos_dropout=0.0, misidentification=0.0)
+F_1024 = 512.0 / math.tan(math.radians(2.9) / 2.0)  # closed-form focal length of the default camera, px
+C_1024 = 511.5
+
+
+def scene(dimorphos_offset_m: tuple[float, float] = (3000.0, 1000.0), range_m: float = 600_000.0,
+          sun: tuple[float, float, float] = (0.0, 1.0, -1.0), blank: bool = False) -> Scene:
+    """Camera at the origin looking down inertial +Z (identity attitude); Didymos on the boresight, Dimorphos
+    beside it at ``dimorphos_offset_m`` across the line of sight."""
+    did = Body(centre_inertial_m=np.array([0.0, 0.0, range_m]), radius_m=390.0)
+    dim = Body(centre_inertial_m=np.array([*dimorphos_offset_m, range_m]), radius_m=82.0)
+    return Scene(camera_position_m=np.zeros(3), q_body_to_inertial=np.array([0.0, 0.0, 0.0, 1.0]),
+                 body_rate_rad_s=np.zeros(3), exposure_s=0.01, bodies=(did, dim), sun_direction=np.array(sun),
+                 blank=blank)
+
+
+def model(**changes: object) -> CentroidModelConfig:
+    """A measurement model without bias, noise, merging or dropout, but for ``changes``."""
+    return CentroidModelConfig(**{**PERFECT, **changes})
+
+
+def pinhole(p: np.ndarray) -> np.ndarray:
+    """Closed-form projection of a camera-frame point with the identity attitude."""
+    return np.array([C_1024 + F_1024 * p[0] / p[2], C_1024 + F_1024 * p[1] / p[2]])
+
+
+def test_a_perfect_model_reports_the_pinhole_projection() -> None:
+    """Without bias, noise or dropout, the reported centres are the closed-form pinhole projections."""
+    sc = scene()
+    m = centroid_measurement(sc, CAMERA, model(), np.random.default_rng(1))
+    assert m.dimorphos_col_row == pytest.approx(tuple(pinhole(sc.bodies[1].centre_inertial_m)), abs=1e-9)
+    assert m.didymos_col_row == pytest.approx(tuple(pinhole(sc.bodies[0].centre_inertial_m)), abs=1e-9)
+    r = F_1024 * 82.0 / np.linalg.norm(sc.bodies[1].centre_inertial_m)
+    phase = math.degrees(math.acos(-np.array([0, 1, -1]) @ sc.bodies[1].centre_inertial_m
+                                   / math.sqrt(2) / np.linalg.norm(sc.bodies[1].centre_inertial_m)))
+    assert m.dimorphos_area_px == pytest.approx(math.pi * r * r * (1 + math.cos(math.radians(phase))) / 2, rel=1e-9)
+
+
+def test_the_bias_moves_the_centroid_towards_the_lit_side() -> None:
+    """The bias is the table's fraction of the apparent radius, along the image direction of a step towards the Sun."""
+    sc = scene()
+    m_cfg = model(phase_deg=(0.0, 180.0), bias_radius_fraction=(0.3, 0.3), dimorphos_dropout=(0.0, 0.0))
+    m = centroid_measurement(sc, CAMERA, m_cfg, np.random.default_rng(1))
+    centre = sc.bodies[1].centre_inertial_m
+    los = centre / np.linalg.norm(centre)
+    sun = sc.sun_direction
+    step = pinhole(centre + 1.0 * (sun - (sun @ los) * los)) - pinhole(centre)  # the Sun's side, in the image
+    shift = np.array(m.dimorphos_col_row) - pinhole(centre)
+    radius_px = F_1024 * 82.0 / np.linalg.norm(centre)
+    assert np.linalg.norm(shift) == pytest.approx(0.3 * radius_px, rel=1e-6)
+    assert shift @ step / (np.linalg.norm(shift) * np.linalg.norm(step)) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_the_bias_follows_the_phase_table() -> None:
+    """Between two table points the bias fraction is interpolated linearly in phase angle."""
+    sc = scene()
+    _, radius_px, phase, _ = body_view(sc, CAMERA, 1)
+    m_cfg = model(phase_deg=(0.0, 180.0), bias_radius_fraction=(0.0, 1.8), dimorphos_dropout=(0.0, 0.0))
+    m = centroid_measurement(sc, CAMERA, m_cfg, np.random.default_rng(1))
+    shift = np.array(m.dimorphos_col_row) - pinhole(sc.bodies[1].centre_inertial_m)
+    assert np.linalg.norm(shift) == pytest.approx(phase / 100.0 * radius_px, rel=1e-6)
+
+
+def test_noise_has_the_configured_sigma() -> None:
+    """Over 4000 frames the per-axis spread is noise_px + noise_radius_fraction * radius (chi-square 5-sigma band)."""
+    sc = scene()
+    m_cfg = model(noise_px=0.7, noise_radius_fraction=0.5)
+    rng = np.random.default_rng(3)
+    true = pinhole(sc.bodies[1].centre_inertial_m)
+    err = np.array([np.array(centroid_measurement(sc, CAMERA, m_cfg, rng).dimorphos_col_row) - true
+                    for _ in range(4000)])
+    sigma = 0.7 + 0.5 * F_1024 * 82.0 / np.linalg.norm(sc.bodies[1].centre_inertial_m)
+    n = err.size
+    assert abs(np.mean(err ** 2) / sigma ** 2 - 1.0) < 5 * math.sqrt(2.0 / n)
+
+
+def test_dropout_and_misidentification_rates() -> None:
+    """The fractions of frames without Dimorphos and with Dimorphos at Didymos's place match the probabilities
+    (binomial 5-sigma bands)."""
+    sc = scene()
+    m_cfg = model(dimorphos_dropout=(0.2,), misidentification=0.1, didymos_dropout=0.05)
+    rng = np.random.default_rng(4)
+    ms = [centroid_measurement(sc, CAMERA, m_cfg, rng) for _ in range(5000)]
+    n = len(ms)
+    lost = np.mean([m.dimorphos_col_row is None for m in ms])
+    did_lost = np.mean([m.didymos_col_row is None for m in ms])
+    swapped = np.mean([m.dimorphos_col_row is not None and m.dimorphos_col_row == m.didymos_col_row for m in ms])
+    assert abs(lost - 0.2) < 5 * math.sqrt(0.2 * 0.8 / n)
+    assert abs(did_lost - 0.05) < 5 * math.sqrt(0.05 * 0.95 / n)
+    p_swap = 0.8 * 0.95 * 0.1  # reported, Didymos reported, then misidentified
+    assert abs(swapped - p_swap) < 5 * math.sqrt(p_swap * (1 - p_swap) / n)
+
+
+def test_touching_discs_and_blank_frames_report_no_dimorphos() -> None:
+    """Dimorphos merged with Didymos (gap below merge_gap_px), out of the frame, or in a blank frame is not reported."""
+    m_cfg = model(merge_gap_px=2.0)
+    rng = np.random.default_rng(5)
+    # discs of 13.1 and 2.8 px at 600 km: 500 m apart is 16.9 px between centres, a gap of 1.0 px
+    assert centroid_measurement(scene((500.0, 0.0)), CAMERA, m_cfg, rng).dimorphos_col_row is None
+    assert centroid_measurement(scene((1000.0, 0.0)), CAMERA, m_cfg, rng).dimorphos_col_row is not None
+    assert centroid_measurement(scene((3000.0, 0.0), blank=True), CAMERA, m_cfg, rng).dimorphos_col_row is None
+    outside = centroid_measurement(scene((600_000.0 * 0.03, 0.0)), CAMERA, m_cfg, rng)  # 1.7 deg off: out of 2.9
+    assert outside.dimorphos_col_row is None and outside.didymos_col_row is not None
+
+
+def test_every_frame_takes_the_same_draws() -> None:
+    """A reported and an unreported frame consume the same draws: the next frame's noise is the same."""
+    m_cfg = model(noise_px=1.0)
+    a, b = np.random.default_rng(6), np.random.default_rng(6)
+    centroid_measurement(scene(), CAMERA, m_cfg, a)
+    centroid_measurement(scene(blank=True), CAMERA, m_cfg, b)
+    assert centroid_measurement(scene(), CAMERA, m_cfg, a) == centroid_measurement(scene(), CAMERA, m_cfg, b)
+
+
+def test_the_universe_sends_a_measurement_and_no_pixels() -> None:
+    """At centroid fidelity a requested frame carries the measurement, an empty blob, and the truth of the frame."""
+    sc = Scenario(name="c", seed=2, universe=UniverseConfig(fidelity="centroid", centroid_model=model()))
+    u = compose.universe(sc)
+    u.begin()
+    req, blob = u.advance(StepReply(step=0, wheel_torque_nm=(0.0, 0.0, 0.0),
+                                    frame_request=FrameRequest(exposure_s=0.01)))  # type: ignore[misc]
+    assert blob == b"" and req.frame is not None and req.frame.measurement is not None
+    assert u._truth[-1].dimorphos_px == pytest.approx(req.frame.measurement.dimorphos_col_row, abs=1e-9)

@@ -1,0 +1,100 @@
+"""Centroid-level fidelity: what the on-board imaging chain would report of a frame, modelled from the truth.
+
+Rendering a frame and running the imaging chain on it is most of a run's cost; a Monte Carlo campaign that studies
+the closed loop rather than the imaging can replace both by this measurement model (``universe.fidelity:
+centroid``). The universe owns the truth, so it makes the measurement; the flight software takes it where it would
+take its imaging chain's output. The model and its parameters are described in ``CentroidModelConfig``; they are
+fitted on image-level runs by ``flyby mc-fit``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from contracts.messages import CentroidMeasurement
+from universe.camera import Scene, camera_to_inertial_matrix, focal_length_px, project_inertial
+from universe.config import CameraConfig, CentroidModelConfig
+from universe.scene import scene_at
+
+if TYPE_CHECKING:
+    from universe.simulator import Universe
+
+DRAWS_PER_FRAME = 4  # uniforms (Didymos dropout, Dimorphos dropout, misidentification, spare) and as many normals
+
+
+def bias_fraction(model: CentroidModelConfig, phase_deg: float) -> float:
+    """The centroid shift towards the Sun's side at a phase angle, fraction of the apparent radius."""
+    return float(np.interp(phase_deg, model.phase_deg, model.bias_radius_fraction))
+
+
+def dimorphos_dropout(model: CentroidModelConfig, phase_deg: float) -> float:
+    """The probability that a visible Dimorphos apart from Didymos is not reported, at a phase angle."""
+    return float(np.interp(phase_deg, model.phase_deg, model.dimorphos_dropout))
+
+
+def body_view(scene: Scene, camera: CameraConfig, index: int) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """Of body ``index`` in the frame: true pinhole (col, row) of its centre (NaN behind the camera), apparent
+    radius (full-resolution px), phase angle (deg) and the unit image direction (col, row) towards the Sun's side."""
+    body = scene.bodies[index]
+    rel = body.centre_inertial_m - scene.camera_position_m
+    range_m = float(np.linalg.norm(rel))
+    los = rel / range_m
+    sun = scene.sun_direction
+    phase_deg = math.degrees(math.acos(float(np.clip(-(sun @ los), -1.0, 1.0))))
+    sun_across = (sun - (sun @ los) * los) @ camera_to_inertial_matrix(scene, camera)  # camera axes
+    norm = float(np.hypot(sun_across[0], sun_across[1]))
+    towards_sun = sun_across[:2] / norm if norm > 1e-12 else np.zeros(2)
+    col_row = np.asarray(project_inertial(scene, camera, body.centre_inertial_m), dtype=float)
+    return col_row, focal_length_px(camera) * body.radius_m / range_m, phase_deg, towards_sun
+
+
+def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidModelConfig,
+                         rng: np.random.Generator) -> CentroidMeasurement:
+    """The imaging chain's report of the frame of ``scene`` (bodies: Didymos, then Dimorphos).
+
+    Every frame takes the same number of draws, whatever it shows, so one frame's outcome never shifts the next's.
+    """
+    u = rng.random(DRAWS_PER_FRAME)
+    z = rng.standard_normal(DRAWS_PER_FRAME)
+    if scene.blank or scene.saturated:  # nothing stands out of a blank or saturated frame
+        return CentroidMeasurement(dimorphos_col_row=None, dimorphos_area_px=0.0, didymos_col_row=None,
+                                   didymos_area_px=0.0)
+    n = camera.resolution_px
+    seen: list[tuple[tuple[float, float], float] | None] = []
+    views = [body_view(scene, camera, i) for i in (0, 1)]
+    for i, (col_row, radius_px, phase_deg, towards_sun) in enumerate(views):
+        if not (np.all(np.isfinite(col_row)) and np.all((col_row >= -0.5) & (col_row <= n - 0.5))):
+            seen.append(None)
+            continue
+        sigma = model.noise_px + model.noise_radius_fraction * radius_px
+        pos = col_row + bias_fraction(model, phase_deg) * radius_px * towards_sun + sigma * z[2 * i: 2 * i + 2]
+        area = math.pi * radius_px ** 2 * (1.0 + math.cos(math.radians(phase_deg))) / 2.0  # the lit part
+        seen.append(((float(pos[0]), float(pos[1])), area))
+    didymos, dimorphos = seen
+    if didymos is not None and u[0] < model.didymos_dropout:
+        didymos = None
+    if dimorphos is not None:
+        (did_px, did_r, _, _), (dim_px, dim_r, dim_phase, _) = views
+        gap = float(np.hypot(*(dim_px - did_px))) - did_r - dim_r if np.all(np.isfinite(did_px)) else math.inf
+        if gap < model.merge_gap_px or u[1] < dimorphos_dropout(model, dim_phase):
+            dimorphos = None
+        elif didymos is not None and u[2] < model.misidentification:
+            dimorphos = didymos
+    return CentroidMeasurement(
+        dimorphos_col_row=None if dimorphos is None else dimorphos[0],
+        dimorphos_area_px=0.0 if dimorphos is None else dimorphos[1],
+        didymos_col_row=None if didymos is None else didymos[0],
+        didymos_area_px=0.0 if didymos is None else didymos[1])
+
+
+def measure_at(u: Universe, exposure_s: float) -> tuple[CentroidMeasurement, tuple[float, float], tuple[float, float]]:
+    """The measurement of the frame the camera takes now, with the true pinhole (col, row) of the centres of
+    Dimorphos and Didymos (as ``render_at`` gives them with the pixels)."""
+    scene = scene_at(u, exposure_s)
+    m = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, u.rng["camera"])
+    dim = project_inertial(scene, u.cfg.camera, scene.bodies[1].centre_inertial_m)
+    did = project_inertial(scene, u.cfg.camera, scene.bodies[0].centre_inertial_m)
+    return m, dim, did
