@@ -7,6 +7,7 @@ watchdogs use ``WallClock``.
 
 from __future__ import annotations
 
+import datetime
 import time
 from typing import Protocol
 
@@ -57,6 +58,11 @@ class WallClock:
         dt = t - time.monotonic()
         if dt > 0:
             time.sleep(dt)
+
+
+def utc_now() -> datetime.datetime:
+    """The machine's UTC now (for certificate validity)."""
+    return datetime.datetime.now(datetime.timezone.utc)
 
 
 def utc_stamp() -> str:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from contracts.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
+from contracts.sdls import KeyRing
 from ground.segment import ReceivedPacket
 from scenario import compose
 from scenario.model import Scenario
@@ -35,8 +36,9 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
     """Run the scenario to its end (or its first ``max_steps`` control periods); ``through_codec`` also encodes and
     decodes every message, as the bus does."""
     sim = compose.universe(scenario)
-    fsw = compose.flight_software(scenario)
-    ground = compose.ground_segment(scenario, timeline)
+    keys = KeyRing.generate()  # fresh keys held by both ends, as ``flyby run`` makes for each run
+    fsw = compose.flight_software(scenario, keys)
+    ground = compose.ground_segment(scenario, timeline, keys)
     out = InProcessRun()
 
     def ground_exchange() -> None:

@@ -78,8 +78,8 @@ def operator_request(segment: GroundSegment, msg: OperatorCommand, utc_s: float 
         else:
             if utc_s is None:
                 raise OperatorError("the run has not started: no time to convert the timeline at")
-            insert, notes = timeline_request(msg.payload, msg.name, segment, utc_s)
-            cmds = [insert]
+            inserts, notes = timeline_request(msg.payload, msg.name, segment, utc_s)
+            cmds = list(inserts)
     except OperatorError as exc:
         return OperatorReply(request=msg.request, ok=False, text=str(exc))
     for c in cmds:
@@ -150,7 +150,7 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         for line in lines:
             log.info("%s", line)
         if tc_log is not None and uplink:
-            tc_log.write(b"".join(uplink))  # every telecommand radiated, as sent, for later analysis
+            tc_log.write(b"".join(segment.radiated))  # every telecommand radiated (no security envelope), for analysis
             tc_log.flush()
         reply = GroundReply(step=msg.step, uplink=tuple(uplink))
         bus.publish(bus.keys.ground_reply, reply)

@@ -11,12 +11,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 
-from contracts import pus
+from contracts import pus, sdls
 from ground.config import FlybyBelief, GroundConfig
 from ground.correlation import Correlation, CorrelationError, TimeReport, fitted_correlation
-from ground.uplink import schedule_insert
+from ground.uplink import schedule_inserts
 from timeline.convert import resolved_commands
 from timeline.model import Timeline, TimelineError
+
+
+SCHEDULED_SEQ_BASE = 0x2000  # TCs sent inside schedule inserts count from here, so the radiated counts stay gapless
 
 
 @dataclass(frozen=True)
@@ -34,7 +37,8 @@ class ReceivedPacket:
 class GroundState:
     """Counters and latest values that ground keeps between steps."""
 
-    tc_seq: int = 0
+    tc_seq: int = 0  # the next radiated TC's sequence count, 0 .. SCHEDULED_SEQ_BASE - 1
+    scheduled_seq: int = SCHEDULED_SEQ_BASE  # the next scheduled TC's, SCHEDULED_SEQ_BASE .. MAX_SEQ_COUNT
     received: int = 0
     undecodable: int = 0
     time_reports: list[TimeReport] = field(default_factory=list)
@@ -42,13 +46,17 @@ class GroundState:
     last_hk_obt_s: float | None = None
     nominal_sent: bool = False
     verifications_failed: int = 0
+    sent_requests: set[pus.RequestId] = field(default_factory=set)  # every TC ground sent, scheduled ones included
 
 
 class GroundSegment:
     """Ground's logic for one run."""
 
-    def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None) -> None:
-        """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags."""
+    def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None,
+                 keys: sdls.KeyRing | None = None) -> None:
+        """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags;
+        ``keys``: the security associations that authenticate its TCs (none: TCs go out unsecured, and the
+        spacecraft refuses them)."""
         self.cfg = cfg
         self.belief = belief
         self.epoch_utc = epoch_utc
@@ -57,6 +65,8 @@ class GroundSegment:
         self.state = GroundState()
         self.timeline = timeline
         self._queue: list[pus.TcCommand] = []
+        self._sender = None if keys is None else sdls.Sender(keys)
+        self.radiated: list[bytes] = []  # the TC packets of the last step's uplink, without their security envelope
 
     def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
         """The nominal trajectory telecommand, its C/A time in OBT by the current correlation."""
@@ -81,7 +91,12 @@ class GroundSegment:
         self._queue.append(cmd)
 
     def _tc(self, cmd: pus.TcCommand) -> bytes:
-        return pus.encode_tc(cmd, self.cfg.apid, self._next_seq())
+        packet = pus.encode_tc(cmd, self.cfg.apid, self._next_seq(), source_id=self.cfg.source_id)
+        sent = self.state.sent_requests
+        sent.add(pus.request_id_of(packet))
+        if isinstance(cmd, pus.InsertActivities | pus.InsertCaRelativeActivities):
+            sent.update(a.request_id for a in cmd.activities)
+        return packet
 
     def step(self, utc_s: float, downlink: tuple[bytes, ...], arrival_utc_s: tuple[float, ...]
              ) -> tuple[list[bytes], list[ReceivedPacket], list[str]]:
@@ -101,22 +116,25 @@ class GroundSegment:
             uplink.append(self._tc(tc))
             uplink.append(self._tc(pus.SetTimeReportRate(rate_exponent=self.cfg.time_report_rate_exponent)))
             if self.timeline is not None and self.timeline.entries:
-                insert = self.timeline_upload(utc_s, tc, log)
-                if insert is not None:
-                    uplink.append(self._tc(insert))
-                    log.append(f"upload timeline: {len(insert.activities)} of {len(self.timeline.entries)} "
-                               "command(s) into the on-board schedule")
+                inserts = self.timeline_upload(utc_s, tc, log)
+                uplink += [self._tc(insert) for insert in inserts]
+                if inserts:
+                    log.append(f"upload timeline: {sum(len(i.activities) for i in inserts)} of "
+                               f"{len(self.timeline.entries)} command(s) into the on-board schedule")
         for cmd in self._queue:
             uplink.append(self._tc(cmd))
         self._queue = []
-        return uplink, received, log
+        self.radiated = uplink
+        units = uplink if self._sender is None else [self._sender.secure(p) for p in uplink]
+        return units, received, log
 
     def timeline_upload(self, utc_s: float, nominal: pus.UploadNominalTrajectory, log: list[str],
-                        timeline: Timeline | None = None) -> pus.InsertActivities | None:
-        """The service 11 insert of the timeline, tags in OBT by the current correlation.
+                        timeline: Timeline | None = None) -> list[pus.InsertActivities | pus.InsertCaRelativeActivities]:
+        """The schedule inserts of the timeline (``ground.uplink.schedule_inserts``), tags in OBT by the current
+        correlation.
 
         Commands that would reach the spacecraft too late (before now + light time + margin) are refused here,
-        each logged with its row, and the rest is uploaded; None if nothing is left.
+        each logged with its row, and the rest is uploaded; empty if nothing is left.
         """
         timeline = timeline or self.timeline
         assert timeline is not None
@@ -128,13 +146,17 @@ class GroundSegment:
         except TimelineError as err:
             log.extend(f"timeline command refused: {p}" for p in err.problems)
             resolved = [r for r in resolved_commands(timeline, self.correlation, **kw) if r.obt_s >= not_before]
-        if not resolved:
-            return None
-        return schedule_insert(resolved, self.cfg.apid, self._next_seq, nominal)
+        return schedule_inserts(resolved, self.cfg.apid, self._next_scheduled_seq, nominal, self.cfg.source_id)
 
     def _next_seq(self) -> int:
         seq = self.state.tc_seq
-        self.state.tc_seq = (seq + 1) % pus.SEQ_COUNT_MODULO
+        self.state.tc_seq = (seq + 1) % SCHEDULED_SEQ_BASE
+        return seq
+
+    def _next_scheduled_seq(self) -> int:
+        seq = self.state.scheduled_seq
+        self.state.scheduled_seq = SCHEDULED_SEQ_BASE + (seq + 1 - SCHEDULED_SEQ_BASE) % (
+            pus.SEQ_COUNT_MODULO - SCHEDULED_SEQ_BASE)
         return seq
 
     def _receive(self, raw: bytes, utc_s: float, log: list[str]) -> ReceivedPacket:

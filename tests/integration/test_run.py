@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from contracts import pus
+from contracts import pus, sdls
 from contracts.bus import free_tcp_port
 from tests.integration.conftest import DATA, flyby
 
@@ -65,7 +65,10 @@ def test_killed_node_stops_the_others(tmp_path: Path) -> None:
     """Killing the OBSW mid-run makes universe and ground exit within the timeout, naming the OBSW."""
     ports = {n: free_tcp_port() for n in ("universe", "obsw", "ground")}
     ep = {n: f"tcp/127.0.0.1:{p}" for n, p in ports.items()}
-    common = ["--config", str(DATA / "short.yaml"), "--run-id", f"kill-{ports['universe']}", "--out", str(tmp_path)]
+    keys = tmp_path.parent / f"{tmp_path.name}-tc-keys.json"
+    sdls.write_key_file(keys, sdls.KeyRing.generate())
+    common = ["--config", str(DATA / "short.yaml"), "--run-id", f"kill-{ports['universe']}", "--out", str(tmp_path),
+              "--insecure", "--tc-keys", str(keys)]
     cmds = {
         "universe": ["--listen", ep["universe"], "--realtime"],
         "obsw": ["--listen", ep["obsw"], "--connect", ep["universe"]],
