@@ -62,6 +62,9 @@ from contracts.wire import (
     packet_len,
 )
 
+SERVICE_NAMES = {1: "request verification", 3: "housekeeping", 5: "event reporting", 9: "time management",
+                 11: "time-based scheduling", 17: "test", 200: "mission: flyby navigation"}
+"""The PUS services of the mission (ECSS-E-ST-70-41C names; 200 is the mission's own)."""
 HK_SID = 1
 HK_WHEEL_SLOTS = 4
 MISSION_SERVICE = 200

@@ -26,6 +26,21 @@ def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subpro
                           timeout=timeout, cwd=cwd)
 
 
+@pytest.fixture(scope="session")
+def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The short scenario run twice with the same seed (shared by the tests of the run and of PUS-C conformance)."""
+    base = tmp_path_factory.mktemp("runs")
+    outs = []
+    for i in (1, 2):
+        out = base / f"run{i}"
+        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), timeout=300)
+        assert r.returncode == 0, f"run {i} failed:\n{r.stdout}\n{r.stderr}\n" + "\n".join(
+            f"--- {n}.log\n{(out / f'{n}.log').read_text()[-3000:]}" for n in ("universe", "obsw", "ground")
+            if (out / f"{n}.log").exists())
+        outs.append(out)
+    return outs[0], outs[1]
+
+
 def start_nodes(out: Path, scenario: Path, realtime: bool = True, credentials: Path | None = None
                 ) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
     """Start the three nodes as separate processes (as on three hosts), over TLS with the identities in

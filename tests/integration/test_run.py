@@ -17,21 +17,6 @@ from tests.integration.conftest import DATA, flyby
 pytestmark = pytest.mark.integration
 
 
-@pytest.fixture(scope="module")
-def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The short scenario run twice with the same seed."""
-    base = tmp_path_factory.mktemp("runs")
-    outs = []
-    for i in (1, 2):
-        out = base / f"run{i}"
-        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), timeout=300)
-        assert r.returncode == 0, f"run {i} failed:\n{r.stdout}\n{r.stderr}\n" + "\n".join(
-            f"--- {n}.log\n{(out / f'{n}.log').read_text()[-3000:]}" for n in ("universe", "obsw", "ground")
-            if (out / f"{n}.log").exists())
-        outs.append(out)
-    return outs[0], outs[1]
-
-
 def _packets(run: Path) -> list[tuple[pus.TmHeader, object]]:
     return [pus.decode_tm(p) for p in pus.split_packets((run / "tm.bin").read_bytes())]
 
