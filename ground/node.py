@@ -31,6 +31,7 @@ from ground.operator import OperatorError, command_request, timeline_request, tr
 from ground.segment import GroundSegment, ReceivedPacket
 
 log = logging.getLogger("ground")
+MAX_ALARM_LINES = 10  # security alarms quoted in the summary (the archive keeps them all)
 
 
 class TruthLog:
@@ -64,6 +65,10 @@ def summary_lines(segment: GroundSegment, archive: Archive) -> list[str]:
     c = segment.correlation
     lines.append(f"time correlation: OBT - UTC offset {c.offset_s:+.4f} s, drift {c.drift_ppm:+.3f} ppm "
                  f"from {c.n_reports} time reports")
+    alarms = segment.state.alarms
+    if alarms:
+        lines.append(f"{len(alarms)} security alarm(s); the first {min(len(alarms), MAX_ALARM_LINES)}:")
+        lines += alarms[:MAX_ALARM_LINES]
     return lines
 
 
@@ -140,7 +145,9 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         bus.sim_time_s = msg.utc_s
         uplink, received, lines = segment.step(msg.utc_s, msg.downlink, msg.downlink_utc_s)
         for p in received:
-            archive.store(p.raw, p.receipt_utc_s)
+            stored = archive.store(p.raw, p.receipt_utc_s)
+            if p.alarm is not None:
+                archive.alarm(p.receipt_utc_s, p.alarm, stored.packet_id)
             line = tm_line(p)
             if line is not None:
                 bus.publish(bus.keys.tm_lines, line)
@@ -148,7 +155,7 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         for rec in msg.truth:
             truth.add(rec)
         for line in lines:
-            log.info("%s", line)
+            (log.warning if line.startswith("SECURITY ALARM") else log.info)("%s", line)
         if tc_log is not None and uplink:
             tc_log.write(b"".join(segment.radiated))  # every telecommand radiated (no security envelope), for analysis
             tc_log.flush()

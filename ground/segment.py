@@ -31,6 +31,7 @@ class ReceivedPacket:
     header: pus.TmHeader | None
     report: pus.TmReport | None
     error: str | None
+    alarm: str | None = None  # a security alarm this packet raised
 
 
 @dataclass
@@ -47,6 +48,7 @@ class GroundState:
     nominal_sent: bool = False
     verifications_failed: int = 0
     sent_requests: set[pus.RequestId] = field(default_factory=set)  # every TC ground sent, scheduled ones included
+    alarms: list[str] = field(default_factory=list)
 
 
 class GroundSegment:
@@ -183,7 +185,27 @@ class GroundSegment:
                        + ", ".join(f"{k}={v}" for k, v in report.model_dump().items() if k != "severity"))
             if isinstance(report, pus.ClockJumpEvent):
                 self._clock_jumped(report.step_s, log)
-        return ReceivedPacket(raw, utc_s, header, report, None)
+        alarm = self._security_alarm(header, report)
+        if alarm is not None:
+            self.state.alarms.append(alarm)
+            log.append(alarm)
+        return ReceivedPacket(raw, utc_s, header, report, None, alarm)
+
+    def _security_alarm(self, header: pus.TmHeader, report: pus.TmReport) -> str | None:
+        """A security alarm for a verification report of a TC ground never sent (someone else commanded the
+        spacecraft, or tried to), or for a TC the spacecraft refused as unauthentic; None otherwise."""
+        at = f"OBT {header.obt_s:.2f} s"
+        if isinstance(report, pus.Verification) and report.request_id not in self.state.sent_requests:
+            rid = report.request_id
+            outcome = "success" if report.success else f"failure 0x{report.failure_code:04X} {report.reason}"
+            return (f"SECURITY ALARM: {at}: {report.stage.name.lower()} {outcome} of TC APID 0x{rid.apid:03X} "
+                    f"sequence {rid.seq_count}, which ground never sent")
+        if isinstance(report, pus.TcSecurityRejectedEvent):
+            known = report.failure_code in pus.FailureCode._value2member_map_
+            code = pus.FailureCode(report.failure_code).name if known else f"0x{report.failure_code:04X}"
+            return (f"SECURITY ALARM: {at}: the spacecraft refused an uplinked TC ({code}, SPI {report.spi}, "
+                    f"ARSN {report.arsn})")
+        return None
 
     def _clock_jumped(self, step_s: float, log: list[str]) -> None:
         """On-board time stepped by ``step_s`` (commanded or not): the time reports received so far were all stamped
