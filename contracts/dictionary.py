@@ -358,6 +358,12 @@ def _check_tc_packet(packet: bytes) -> bytes:
 TcPacket = Annotated[bytes, AfterValidator(_check_tc_packet), EmbeddedPacket()]
 
 
+def _request_id(packet: bytes) -> RequestId:
+    """The request id of a TC packet: APID and sequence count from its first 4 octets."""
+    w0, w1 = struct.unpack_from(">HH", packet)
+    return RequestId(apid=w0 & MAX_APID, seq_count=w1 & MAX_SEQ_COUNT)
+
+
 class ScheduledActivity(Record):
     """One entry of the time-based schedule (ECSS-E-ST-70-41C): its release OBT and a complete TC packet."""
 
@@ -367,8 +373,7 @@ class ScheduledActivity(Record):
     @property
     def request_id(self) -> RequestId:
         """The request id of the wrapped TC."""
-        w0, w1 = struct.unpack_from(">HH", self.tc_packet)
-        return RequestId(apid=w0 & MAX_APID, seq_count=w1 & MAX_SEQ_COUNT)
+        return _request_id(self.tc_packet)
 
 
 class CaRelativeActivity(Record):
@@ -382,8 +387,7 @@ class CaRelativeActivity(Record):
     @property
     def request_id(self) -> RequestId:
         """The request id of the wrapped TC."""
-        w0, w1 = struct.unpack_from(">HH", self.tc_packet)
-        return RequestId(apid=w0 & MAX_APID, seq_count=w1 & MAX_SEQ_COUNT)
+        return _request_id(self.tc_packet)
 
 
 class ScheduleSummaryEntry(Record):

@@ -116,18 +116,24 @@ class Tm:
     data: bytes
 
 
+def _pus(packet: bytes, is_tc: bool) -> Primary:
+    """The primary header of a PUS packet of the kind wanted, its secondary header's room and PUS version checked."""
+    kind, secondary = ("TC", TC_SECONDARY_LEN) if is_tc else ("TM", TM_SECONDARY_LEN)
+    p = primary(packet)
+    if p.is_tc != is_tc:
+        raise NonConforming(f"packet type says {'TC' if p.is_tc else 'TM'}, {kind} expected")
+    if p.length < PRIMARY_LEN + secondary + 2:
+        raise NonConforming(f"{p.length} octets cannot hold the {kind} secondary header and CRC")
+    version = u(packet, PRIMARY_LEN, 1) >> 4
+    if version != PUS_VERSION:
+        raise NonConforming(f"{kind} PUS version {version}, ECSS-E-ST-70-41C says {PUS_VERSION}")
+    return p
+
+
 def tm(packet: bytes) -> Tm:
     """Read a TM packet."""
-    p = primary(packet)
-    if p.is_tc:
-        raise NonConforming("packet type says TC, TM expected")
-    if p.length < PRIMARY_LEN + TM_SECONDARY_LEN + 2:
-        raise NonConforming(f"{p.length} octets cannot hold the TM secondary header and CRC")
-    h = PRIMARY_LEN
-    version, status = u(packet, h, 1) >> 4, u(packet, h, 1) & 0xF
-    if version != PUS_VERSION:
-        raise NonConforming(f"TM PUS version {version}, ECSS-E-ST-70-41C says {PUS_VERSION}")
-    return Tm(primary=p, time_status=status, service=u(packet, h + 1, 1), subtype=u(packet, h + 2, 1),
+    p, h = _pus(packet, is_tc=False), PRIMARY_LEN
+    return Tm(primary=p, time_status=u(packet, h, 1) & 0xF, service=u(packet, h + 1, 1), subtype=u(packet, h + 2, 1),
               message_counter=u(packet, h + 3, 2), destination_id=u(packet, h + 5, 2),
               time_s=cuc_seconds(packet, h + 7), data=packet[h + TM_SECONDARY_LEN:-2])
 
@@ -147,15 +153,7 @@ class Tc:
 
 def tc(packet: bytes) -> Tc:
     """Read a TC packet."""
-    p = primary(packet)
-    if not p.is_tc:
-        raise NonConforming("packet type says TM, TC expected")
-    if p.length < PRIMARY_LEN + TC_SECONDARY_LEN + 2:
-        raise NonConforming(f"{p.length} octets cannot hold the TC secondary header and CRC")
-    h = PRIMARY_LEN
-    version = u(packet, h, 1) >> 4
-    if version != PUS_VERSION:
-        raise NonConforming(f"TC PUS version {version}, ECSS-E-ST-70-41C says {PUS_VERSION}")
+    p, h = _pus(packet, is_tc=True), PRIMARY_LEN
     return Tc(primary=p, ack_flags=u(packet, h, 1) & 0xF, service=u(packet, h + 1, 1), subtype=u(packet, h + 2, 1),
               source_id=u(packet, h + 3, 2), data=packet[h + TC_SECONDARY_LEN:-2], request_id=packet[:4])
 
