@@ -54,6 +54,7 @@ from contracts.wire import (
     UINT8,
     EmbeddedPacket,
     Finite,
+    OctetString,
     Mode8,
     ObtS,
     Rid,
@@ -69,6 +70,7 @@ HK_SID = 1
 HK_WHEEL_SLOTS = 4
 MISSION_SERVICE = 200
 TC_SECONDARY_HEADER_LEN = 5
+WRAPPED_KEY_LEN = 40  # a 256-bit key wrapped by AES key wrap (RFC 3394): 8 octets longer
 CRC_LEN = 2
 MAX_LIST = 0xFFFF
 UNIT_TOLERANCE = 1e-9
@@ -549,6 +551,16 @@ class InsertCaRelativeActivities(Telecommand, service=MISSION_SERVICE, subtype=8
     extension of TC[11,4]: each entry adds its offset from closest approach)."""
 
     activities: tuple[CaRelativeActivity, ...] = field("the activities", min_length=1, max_length=MAX_LIST)
+
+
+class RekeySecurityAssociation(Telecommand, service=MISSION_SERVICE, subtype=9):
+    """Load a new TC authentication key (CCSDS 355.0-B over-the-air rekeying): a new security association, its key
+    wrapped (AES key wrap, RFC 3394) under a key derived from the association that authenticates this TC. The board
+    accepts both until the first TC under the new one, then retires the old one."""
+
+    spi: U16 = field("security parameter index of the new association", ge=1)
+    wrapped_key: Annotated[bytes, OctetString(WRAPPED_KEY_LEN)] = field(
+        "the new 256-bit key, wrapped", min_length=WRAPPED_KEY_LEN, max_length=WRAPPED_KEY_LEN)
 
 
 class NavigationReport(Report, service=MISSION_SERVICE, subtype=130):

@@ -11,7 +11,10 @@ its ARSN is above the last one it accepted; the MAC is HMAC-SHA-256 over the sec
 truncated to its first 16 octets (CCSDS 355.0-B lets an SA choose the MAC length). TCs carried inside a schedule
 insert are plain packets: the insert that carries them was authenticated when it was received.
 
-Keys live in a key file (JSON, mode 0600) that is never part of the scenario, the logs or the run folder.
+Keys live in a key file (JSON, mode 0600) that is never part of the scenario, the logs or the run folder. A new
+key can be loaded by telecommand (``RekeySecurityAssociation``): wrapped (AES key wrap, RFC 3394) under a key derived
+from the association that authenticates the TC; the receiver then accepts both until the first unit under the new
+association, and retires the old one, so a lost rekeying TC never locks the ground out.
 """
 
 from __future__ import annotations
@@ -26,6 +29,8 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
+from cryptography.hazmat.primitives.keywrap import InvalidUnwrap, aes_key_unwrap, aes_key_wrap
+
 from contracts.errors import FlybyError
 from contracts.packet_errors import MAX_APID, MAX_SEQ_COUNT, FailureCode, RequestId
 from contracts.wire import PRIMARY_HEADER_LEN, packet_len
@@ -36,6 +41,7 @@ MAC_LEN = 16
 KEY_LEN = 32  # HMAC-SHA-256 keys of the hash's own block-safe size, 256 bits
 MAX_ARSN = 0xFFFFFFFF
 ALGORITHM = "HMAC-SHA-256"
+KEY_WRAP_LABEL = b"flyby SDLS key wrap"
 KEY_FILE_FORMAT = "flyby-sdls-keys/1"
 
 
@@ -67,6 +73,24 @@ class SecurityAssociation:
     def mac(self, authenticated: bytes) -> bytes:
         """The truncated HMAC-SHA-256 of ``authenticated``."""
         return hmac.new(self.key, authenticated, hashlib.sha256).digest()[:MAC_LEN]
+
+    def _wrapping_key(self) -> bytes:
+        # a key of its own for wrapping, derived from the association's: one key never serves two algorithms
+        return hmac.new(self.key, KEY_WRAP_LABEL, hashlib.sha256).digest()
+
+    def wrap(self, new_key: bytes) -> bytes:
+        """``new_key`` wrapped (AES key wrap, RFC 3394) for a rekeying TC sent under this association."""
+        return aes_key_wrap(self._wrapping_key(), new_key)
+
+    def unwrap(self, wrapped: bytes) -> bytes:
+        """The key ``wrap`` wrapped; ValueError if it was not wrapped under this association."""
+        try:
+            key = aes_key_unwrap(self._wrapping_key(), wrapped)
+        except InvalidUnwrap:
+            raise ValueError(f"the new key was not wrapped under SPI {self.spi}") from None
+        if len(key) != KEY_LEN:
+            raise ValueError(f"the new key has {len(key)} octets, {KEY_LEN} are needed")
+        return key
 
 
 @dataclass(frozen=True)
@@ -164,23 +188,47 @@ class Sender:
 
     def __init__(self, keys: KeyRing) -> None:
         self.keys = keys
+        active = keys.get(keys.active_spi)
+        assert active is not None
+        self.active = active
         self._arsn: dict[int, int] = {}
 
     def secure(self, packet: bytes) -> bytes:
         """The secured unit of ``packet``."""
-        sa = self.keys.get(self.keys.active_spi)
-        assert sa is not None
-        arsn = self._arsn.get(sa.spi, 0) + 1
-        self._arsn[sa.spi] = arsn
-        return secure(packet, sa, arsn)
+        arsn = self._arsn.get(self.active.spi, 0) + 1
+        self._arsn[self.active.spi] = arsn
+        return secure(packet, self.active, arsn)
+
+    def new_association(self, spi: int) -> tuple[SecurityAssociation, bytes]:
+        """A fresh association ``spi`` and its key wrapped under the active one (for a rekeying TC); the sender
+        keeps the active one until ``switch``."""
+        sa = SecurityAssociation(spi, secrets.token_bytes(KEY_LEN))
+        return sa, self.active.wrap(sa.key)
+
+    def switch(self, sa: SecurityAssociation) -> None:
+        """Send under ``sa`` from now on (once the spacecraft has confirmed it holds it)."""
+        self.active = sa
 
 
 class Receiver:
     """The spacecraft's end: checks each secured unit and keeps the last accepted ARSN of each SA."""
 
     def __init__(self, keys: KeyRing | None) -> None:
-        self.keys = keys
+        self.associations = {} if keys is None else {sa.spi: sa for sa in keys.associations}
         self.last_arsn: dict[int, int] = {}
+        self.last_spi: int | None = None  # the association of the last unit accepted
+        self._retire: dict[int, int] = {}  # new SPI -> the SPI it replaces, retired at the new one's first use
+
+    def install(self, spi: int, wrapped: bytes) -> None:
+        """Add association ``spi`` with the key ``wrapped`` under the association of the last accepted unit; that
+        one is retired once a unit under ``spi`` is accepted. ValueError if ``spi`` is taken or the key does not
+        unwrap."""
+        if self.last_spi is None:
+            raise ValueError("no authenticated unit to take the wrapping key from")
+        if spi in self.associations:
+            raise ValueError(f"SPI {spi} already names a security association")
+        self.associations[spi] = SecurityAssociation(spi, self.associations[self.last_spi].unwrap(wrapped))
+        self._retire[spi] = self.last_spi
 
     def check(self, unit: bytes) -> bytes:
         """The TC packet of an authentic, fresh ``unit``; SecurityRejection otherwise.
@@ -195,7 +243,7 @@ class Receiver:
         spi, arsn = SECURITY_HEADER.unpack_from(unit)
         packet = packet_of(unit)
         rid = _request_id(packet)
-        sa = None if self.keys is None else self.keys.get(spi)
+        sa = self.associations.get(spi)
         if sa is None and _plain_tc(unit):
             raise SecurityRejection(FailureCode.UNAUTHENTICATED, "a TC packet without security header and MAC",
                                     request_id=_request_id(unit))
@@ -209,4 +257,8 @@ class Receiver:
             raise SecurityRejection(FailureCode.REPLAYED, f"ARSN {arsn} is not above the last accepted {last} "
                                     f"(SPI {spi})", spi, arsn, rid)
         self.last_arsn[spi] = arsn
+        self.last_spi = spi
+        retired = self._retire.pop(spi, None)
+        if retired is not None:
+            self.associations.pop(retired, None)
         return packet

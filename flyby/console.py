@@ -188,7 +188,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     what.add_argument("--send", nargs="+", metavar=("COMMAND", "NAME=VALUE"),
                       help="one command of the timeline dictionary (e.g. --send set_mode mode=SAFE) or a schedule request: "
                            "schedule_time_shift delta_s=2.5 [request_ids=[4,5]], schedule_delete request_ids=[4], "
-                           "schedule_report [detail=true], ping")
+                           "schedule_report [detail=true], ping, or rekey (a new TC key, made by ground)")
     what.add_argument("--upload-timeline", metavar="FILE", help="a timeline file (YAML or CSV)")
     what.add_argument("--upload-trajectory", metavar="FILE",
                       help="a trajectory file: ca_time_utc or ca_time_s, ca_distance_km, optional sigmas")

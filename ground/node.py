@@ -75,6 +75,13 @@ def summary_lines(segment: GroundSegment, archive: Archive) -> list[str]:
 def operator_request(segment: GroundSegment, msg: OperatorCommand, utc_s: float | None) -> OperatorReply:
     """Queue the telecommands of an operator request, or refuse it with the reason."""
     try:
+        if msg.action == "send" and msg.name == "rekey":  # ground makes the key: the console never sees it
+            try:
+                segment.rekey()
+            except ValueError as exc:
+                raise OperatorError(str(exc)) from None
+            return OperatorReply(request=msg.request, ok=True, text="queued RekeySecurityAssociation for the next "
+                                 "uplink; ground sends under the new key once the spacecraft confirms it")
         if msg.action == "send":
             cmds = [command_request(msg.payload, segment.cfg.apid)]
             notes: list[str] = []

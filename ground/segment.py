@@ -68,6 +68,9 @@ class GroundSegment:
         self.timeline = timeline
         self._queue: list[pus.TcCommand] = []
         self._sender = None if keys is None else sdls.Sender(keys)
+        self._next_spi = 1 + max((sa.spi for sa in keys.associations), default=0) if keys is not None else 1
+        self._rekeys: dict[pus.RequestId, sdls.SecurityAssociation] = {}  # rekeying TC -> the association it loads
+        self._new_sa: dict[int, sdls.SecurityAssociation] = {}
         self.radiated: list[bytes] = []  # the TC packets of the last step's uplink, without their security envelope
 
     def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
@@ -92,10 +95,24 @@ class GroundSegment:
         """Send ``cmd`` at the next step (operator commands, timeline uploads)."""
         self._queue.append(cmd)
 
+    def rekey(self) -> pus.RekeySecurityAssociation:
+        """A rekeying TC with a fresh association, queued; ground switches to it when the spacecraft reports the TC
+        completed (until then it keeps sending under the current one, which the spacecraft still accepts)."""
+        if self._sender is None:
+            raise ValueError("ground holds no TC keys to rekey")
+        sa, wrapped = self._sender.new_association(self._next_spi)
+        self._next_spi += 1
+        self._new_sa[sa.spi] = sa
+        cmd = pus.RekeySecurityAssociation(spi=sa.spi, wrapped_key=wrapped)
+        self.queue(cmd)
+        return cmd
+
     def _tc(self, cmd: pus.TcCommand) -> bytes:
         packet = pus.encode_tc(cmd, self.cfg.apid, self._next_seq(), source_id=self.cfg.source_id)
         sent = self.state.sent_requests
         sent.add(pus.request_id_of(packet))
+        if isinstance(cmd, pus.RekeySecurityAssociation) and cmd.spi in self._new_sa:
+            self._rekeys[pus.request_id_of(packet)] = self._new_sa.pop(cmd.spi)
         if isinstance(cmd, pus.InsertActivities | pus.InsertCaRelativeActivities):
             sent.update(a.request_id for a in cmd.activities)
         return packet
@@ -176,6 +193,11 @@ class GroundSegment:
             self._refit(log)
         elif isinstance(report, pus.Housekeeping):
             self.state.last_hk, self.state.last_hk_obt_s = report, header.obt_s
+        elif isinstance(report, pus.Verification) and report.success and report.stage == pus.Stage.COMPLETION \
+                and report.request_id in self._rekeys and self._sender is not None:
+            sa = self._rekeys.pop(report.request_id)
+            self._sender.switch(sa)
+            log.append(f"TC authentication: the spacecraft loaded security association {sa.spi}; sending under it")
         elif isinstance(report, pus.Verification) and not report.success:
             self.state.verifications_failed += 1
             log.append(f"TC {report.request_id.seq_count} failed at {report.stage.name.lower()}: "

@@ -114,6 +114,7 @@ class FlightSoftware:
             pus.StopImaging: self._stop_imaging,
             pus.SetTimeReportRate: self._set_time_report_rate,
             pus.AdjustObt: self._adjust_obt,
+            pus.RekeySecurityAssociation: self._rekey,
             pus.RequestTimeReports: self._request_time_reports,
             pus.InsertActivities: self._insert_activities,
             pus.InsertCaRelativeActivities: self._insert_ca_relative,
@@ -262,6 +263,13 @@ class FlightSoftware:
         # the oscillator hardware applies it before the next period; the jump is then seen and reported
         self._clock_adjust_s = (self._clock_adjust_s or 0.0) + cmd.delta_s
         self._log.append(f"OBT {obt:.3f} s: commanded clock adjustment of {cmd.delta_s:+.6f} s")
+
+    def _rekey(self, cmd: pus.RekeySecurityAssociation, obt: float) -> None:
+        try:
+            self.security.install(cmd.spi, cmd.wrapped_key)
+        except ValueError as exc:
+            raise CommandRejected(RejectReason.BAD_ARGUMENT, f"rekey: {exc}") from None
+        self._log.append(f"OBT {obt:.2f} s: TC authentication: security association {cmd.spi} loaded")
 
     def _request_time_reports(self, cmd: pus.RequestTimeReports, obt: float) -> None:
         self._time_report_period = 1.0

@@ -24,6 +24,11 @@ class TcSecurity:
             self.rejected[rej.failure_code] = min(self.rejected[rej.failure_code] + 1, COUNTER_MAX)
             raise
 
+    def install(self, spi: int, wrapped_key: bytes) -> None:
+        """Load association ``spi`` from a rekeying TC, its key wrapped under the association that authenticated it;
+        ValueError naming what is wrong."""
+        self._receiver.install(spi, wrapped_key)
+
     def housekeeping(self) -> dict[str, int]:
         """The rejection counters, as the housekeeping report's fields."""
         r = self.rejected
