@@ -15,7 +15,8 @@ is a u16 as the mission chooses); an activity that follows the on-board C/A esti
 subservice TC[200,8], which adds its offset from closest approach so the OBSW can re-anchor it when a new C/A
 estimate is accepted. The filter-based subtypes of service 11 (6, 8, 11, 14) are not implemented: ground always
 names activities by request id. A time shift is an IEEE float64 in seconds (exact, unlike a CUC relative time on
-the 2^-16 s grid).
+the 2^-16 s grid). A radiated TC travels inside a security envelope (``contracts.sdls``) that is no part of the
+packet.
 """
 
 from __future__ import annotations
