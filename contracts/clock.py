@@ -8,6 +8,7 @@ how fast the machine is.
 
 from __future__ import annotations
 
+import datetime
 import time
 from typing import Protocol
 
@@ -58,6 +59,11 @@ class WallClock:
         dt = t - time.monotonic()
         if dt > 0:
             time.sleep(dt)
+
+
+def utc_now() -> datetime.datetime:
+    """The machine's UTC now (for certificate validity)."""
+    return datetime.datetime.now(datetime.timezone.utc)
 
 
 def utc_stamp() -> str:

@@ -235,6 +235,31 @@ class EmbeddedPacket(WireType):
 
 
 @dataclass(frozen=True)
+class OctetString(WireType):
+    """A fixed number of octets, carried as they are (a wrapped key)."""
+
+    n: int
+
+    @property
+    def label(self) -> str:  # type: ignore[override]
+        """E.g. 40 octets."""
+        return f"{self.n} octets"
+
+    @property
+    def octets(self) -> int:  # type: ignore[override]
+        """Size in octets."""
+        return self.n
+
+    def encode(self, value: Any) -> bytes:
+        """The octets."""
+        return bytes(value)
+
+    def decode(self, r: Reader, field: str) -> Any:
+        """``n`` octets."""
+        return r.raw(self.n, field)
+
+
+@dataclass(frozen=True)
 class Vector(WireType):
     """A fixed number of values of one wire type (a tuple)."""
 

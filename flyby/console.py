@@ -22,7 +22,7 @@ import yaml
 import zenoh
 
 from contracts import pus
-from contracts.bus import Keys, session_config
+from contracts.bus import OPERATOR, Keys
 from contracts.exitcodes import ExitCode
 from contracts.clock import WallClock
 from contracts.errors import DecodeError
@@ -96,9 +96,16 @@ def console(args: argparse.Namespace) -> int:
     except (OSError, ValueError) as exc:
         print(f"flyby ground: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    from flyby.nodecli import bus_settings
+
+    try:
+        conf = bus_settings(OPERATOR, [], args.connect, args.run_id, args.credentials, args.insecure)
+    except ValueError as exc:
+        print(f"flyby ground: {exc}", file=sys.stderr)
+        return EXIT_USAGE
     keys = Keys(args.run_id)
     inbox: queue.SimpleQueue[object] = queue.SimpleQueue()
-    with zenoh.open(session_config(connect=args.connect)) as session:
+    with zenoh.open(conf) as session:
 
         def on(kind: type) -> object:
             def cb(sample: zenoh.Sample) -> None:
@@ -214,14 +221,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     g = sub.add_parser("ground", help="operator console: send commands, upload files, watch housekeeping",
                        description=__doc__)
     g.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                   help="the ground node's Zenoh endpoint, e.g. tcp/127.0.0.1:7449 (printed by flyby run)")
+                   help="the ground node's Zenoh endpoint, e.g. tls/127.0.0.1:7449 (printed by flyby run)")
     g.add_argument("--run-id", default="default", help="the run's identifier (printed by flyby run)")
+    g.add_argument("--credentials", type=Path, default=None, metavar="DIR",
+                   help="folder with ca.pem, operator.pem and operator.key (printed by flyby run)")
+    g.add_argument("--insecure", action="store_true", help="the run's bus is plain TCP (flyby run --insecure)")
     g.add_argument("--run", type=Path, default=None, metavar="RUN_DIR", help="print a recorded run's lines instead")
     what = g.add_mutually_exclusive_group()
     what.add_argument("--send", nargs="+", metavar=("COMMAND", "NAME=VALUE"),
                       help="one command of the timeline dictionary (e.g. --send set_mode mode=SAFE) or a schedule request: "
                            "schedule_time_shift delta_s=2.5 [request_ids=[4,5]], schedule_delete request_ids=[4], "
-                           "schedule_report [detail=true], ping")
+                           "schedule_report [detail=true], ping, or rekey (a new TC key, made by ground)")
     what.add_argument("--upload-timeline", metavar="FILE", help="a timeline file (YAML or CSV)")
     what.add_argument("--upload-trajectory", metavar="FILE",
                       help="a trajectory file: ca_time_utc or ca_time_s, ca_distance_km, optional sigmas")

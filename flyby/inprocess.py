@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from contracts.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
+from contracts.sdls import KeyRing
 from contracts.steplog import StepLogWriter
 from ground.segment import GroundSegment, ReceivedPacket, TimelineUpload
 from obsw.software import FlightSoftware
@@ -42,8 +43,9 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
     decodes every message, as the bus does; ``record``: a file to record the flight software's inputs and outputs
     into, as the OBSW node does (``contracts.steplog``; ``flyby replay`` reads it)."""
     sim = compose.universe(scenario)
-    fsw = compose.flight_software(scenario)
-    ground = compose.ground_segment(scenario, timeline)
+    keys = KeyRing.generate()  # fresh keys held by both ends, as ``flyby run`` makes for each run
+    fsw = compose.flight_software(scenario, keys)
+    ground = compose.ground_segment(scenario, timeline, keys)
     out = InProcessRun()
     writer = None if record is None else StepLogWriter(
         record, {"scenario": scenario.name, "seed": scenario.seed, "obsw": fsw.cfg.model_dump(mode="json")})

@@ -12,6 +12,8 @@ This module is an adapter (it owns the disk); decoding is ``contracts.pus``. Tab
   as NULL (SQLite has no NaN). Indexed on (name, obt_s).
 - ``sequence_anomalies``: per APID, gaps in the 14-bit sequence count (with the number of packets missing),
   duplicates and late (out-of-order) packets.
+- ``alarms``: the ground's security alarms (a report about a TC it never sent, a TC the spacecraft refused), each
+  with its receipt time and the packet that raised it.
 
 Sequence rule: with ``d = (seq - (last + 1)) mod 16384``, ``d == 0`` is in order; ``0 < d < 8192`` is a gap of ``d``
 packets; ``d >= 8192`` is a late or duplicate packet if its OBT is not after the last one's, otherwise a gap of
@@ -72,6 +74,11 @@ CREATE TABLE IF NOT EXISTS sequence_anomalies (
     received_seq INTEGER NOT NULL,
     missing INTEGER NOT NULL,
     receipt_utc_s REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS alarms (
+    packet_id INTEGER REFERENCES packets (id),
+    receipt_utc_s REAL NOT NULL,
+    text TEXT NOT NULL
 );
 """
 _HALF_WINDOW = SEQ_COUNT_MODULO // 2
@@ -173,6 +180,7 @@ class Archive:
         self._packets: list[tuple[Any, ...]] = []
         self._params: list[tuple[int, str, float, Value]] = []
         self._anomalies: list[tuple[Any, ...]] = []
+        self._alarms: list[tuple[int | None, float, str]] = []
         self._raw: list[bytes] = []
         self._closed = False
         self._read_only = False
@@ -207,7 +215,7 @@ class Archive:
         self._bin = None
         self._next_id = 0
         self._last = {}
-        self._packets, self._params, self._anomalies, self._raw = [], [], [], []
+        self._packets, self._params, self._anomalies, self._raw, self._alarms = [], [], [], [], []
         self._closed = False
         self._read_only = True
         self.damage = None
@@ -258,6 +266,14 @@ class Archive:
             self.flush()
         return result
 
+    def alarm(self, receipt_utc_s: float, text: str, packet_id: int | None = None) -> None:
+        """Record a security alarm raised at ``receipt_utc_s`` by the packet ``packet_id`` (written at the next
+        flush)."""
+        self._check_open()
+        if self._read_only:
+            raise ArchiveError(f"archive {self.path} is open for reading only")
+        self._alarms.append((packet_id, receipt_utc_s, text))
+
     def store_many(self, packets: Iterable[bytes], receipt_utc_s: float) -> list[StoreResult]:
         """Archive several packets received at the same time."""
         return [self.store(p, receipt_utc_s) for p in packets]
@@ -285,7 +301,7 @@ class Archive:
     def flush(self) -> None:
         """Write every queued packet: raw octets to tm.bin, rows to SQLite in one transaction."""
         self._check_open()
-        if not self._packets:
+        if not self._packets and not self._alarms:
             return
         assert self._bin is not None  # a read-only archive never queues packets
         self._bin.write(b"".join(self._raw))
@@ -294,6 +310,8 @@ class Archive:
             self._db.executemany("INSERT INTO packets VALUES (?,?,?,?,?,?,?,?,?,?,?)", self._packets)
             self._db.executemany("INSERT INTO parameters VALUES (?,?,?,?)", self._params)
             self._db.executemany("INSERT INTO sequence_anomalies VALUES (?,?,?,?,?,?,?)", self._anomalies)
+            self._db.executemany("INSERT INTO alarms VALUES (?,?,?)", self._alarms)
+        self._alarms.clear()
         self._packets.clear()
         self._params.clear()
         self._anomalies.clear()
@@ -399,6 +417,13 @@ class Archive:
         )
         return [Gap(*row) for row in rows]
 
+    def alarms(self) -> list[tuple[float, str]]:
+        """Every security alarm (receipt UTC s, text), in the order raised; none in an archive older than alarms."""
+        self.flush()
+        if not self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'alarms'").fetchone():
+            return []
+        return [(t, text) for t, text in self._db.execute("SELECT receipt_utc_s, text FROM alarms ORDER BY rowid")]
+
     def undecodable(self) -> list[Undecodable]:
         """Every packet kept raw because it could not be decoded, in arrival order."""
         self.flush()
@@ -407,7 +432,8 @@ class Archive:
 
     def counts(self) -> dict[str, int]:
         """Packet counts: ``stored``, ``decoded``, ``undecodable``, ``gaps``, ``missing`` (packets lost in gaps),
-        ``duplicates``, ``late``, and one ``TM[s,t]`` entry per service and subtype seen."""
+        ``duplicates``, ``late``, ``alarms`` (security alarms), and one ``TM[s,t]`` entry per service and subtype
+        seen."""
         self.flush()
         db = self._db
         stored, undecodable = db.execute(
@@ -422,6 +448,7 @@ class Archive:
         out["gaps"], out["missing"] = anomalies["gap"]
         out["duplicates"] = anomalies["duplicate"][0]
         out["late"] = anomalies["late"][0]
+        out["alarms"] = len(self.alarms())
         for service, sub, n in db.execute(
             "SELECT service, subservice, COUNT(*) FROM packets WHERE error IS NULL "
             "GROUP BY service, subservice ORDER BY service, subservice"

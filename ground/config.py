@@ -89,6 +89,8 @@ class GroundConfig(Config):
 
     step_period_s: float = Field(1.0, gt=0, description="how often ground exchanges with the link, s of UTC")
     apid: int = Field(0x0C1, ge=0, lt=2048, description="APID the ground addresses its telecommands to")
+    source_id: int = Field(1, ge=0, le=0xFFFF, description="PUS source id of the ground's telecommands, the id "
+                           "its verification reports come back to (ECSS-E-ST-70-41C)")
     upload_nominal_at_s: float | None = Field(
         None,
         description="true time at which ground uploads the nominal trajectory, s after the epoch "

@@ -138,8 +138,8 @@ def trajectory_request(payload: bytes, segment: GroundSegment) -> pus.UploadNomi
 
 
 def timeline_request(payload: bytes, name: str, segment: GroundSegment,
-                     utc_s: float) -> tuple[pus.InsertActivities, list[str]]:
-    """A timeline file (YAML, or CSV when ``name`` ends in .csv) as one PUS 11 insert, tags in OBT, and the
+                     utc_s: float) -> tuple[list[pus.InsertActivities | pus.InsertCaRelativeActivities], list[str]]:
+    """A timeline file (YAML, or CSV when ``name`` ends in .csv) as schedule inserts, tags in OBT, and the
     commands refused because they would arrive too late."""
     try:
         text = payload.decode("utf-8")
@@ -153,7 +153,7 @@ def timeline_request(payload: bytes, name: str, segment: GroundSegment,
     except TimelineError as exc:
         raise OperatorError("; ".join(exc.problems)) from None
     log: list[str] = []
-    insert = segment.timeline_upload(utc_s, segment.nominal_trajectory_tc(), log, timeline)
-    if insert is None:
+    inserts = segment.timeline_upload(utc_s, segment.nominal_trajectory_tc(), log, timeline)
+    if not inserts:
         raise OperatorError("timeline: " + ("; ".join(log) or "no command left to upload"))
-    return insert, log
+    return inserts, log

@@ -315,6 +315,8 @@ class ObswConfig(Config):
         10, ge=1, description="line-of-sight measurements needed before the on-board C/A estimate is trusted"
     )
     apid: int = Field(0x0C1, ge=0, lt=2048, description="APID of the on-board software's packets")
+    ground_id: int = Field(1, ge=0, le=0xFFFF, description="PUS destination id of unsolicited telemetry, the "
+                           "ground's application id (ECSS-E-ST-70-41C; a TC's reports go to its own source id)")
     inertia_kgm2: tuple[tuple[float, float, float], ...] = Field(
         ((0.152, 0.0, 0.0), (0.0, 0.117, 0.0), (0.0, 0.0, 0.058)),
         description="on-board knowledge of the inertia matrix, kg m^2",

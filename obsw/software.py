@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from contracts import pus
+from contracts import pus, sdls
 from contracts.messages import FrameRequest, StepReply, StepRequest
 from contracts.mode import Mode
 from obsw.config import ObswConfig
@@ -39,8 +39,11 @@ from obsw.modes import CaEstimate, Cause, ModeEvent, ModeManager, TargetDetected
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.recognition import TrajectoryRecognizer
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
+from obsw.tc_security import TcSecurity
+from obsw.tm_counters import TmCounters
 from obsw.tracking import Reference, TrackingLoop
 from obsw.trajectory import NominalTrajectory
+from obsw.verification import TcVerification
 
 TRACKING_MODES = (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING)
 ATTITUDE_HISTORY_PERIODS = 32  # attitude estimates kept to turn a frame's LOS with the attitude at its exposure
@@ -59,8 +62,10 @@ def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
 class FlightSoftware:
     """The on-board software of the flyby, advanced one control period per ``step``."""
 
-    def __init__(self, cfg: ObswConfig) -> None:
+    def __init__(self, cfg: ObswConfig, keys: sdls.KeyRing | None = None) -> None:
+        """``keys``: the on-board security associations that authenticate uplinked TCs (none: all are refused)."""
         self.cfg = cfg
+        self.security = TcSecurity(keys)
         self.camera = cfg.camera
         w = cfg.wheels
         self.axes = wheel_axes_body(w.layout, w.pyramid_angle_deg)
@@ -78,8 +83,9 @@ class FlightSoftware:
         self.frame_period_s = cfg.camera.frame_period_s
         self.exposure_s = cfg.camera.exposure_s
         self._next_frame_obt: float | None = None
-        self._tm_seq = 0
-        self._msg_counter = 0
+        self._counters = TmCounters()
+        self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
+        self._requester: int | None = None  # source id of the TC being executed: its responses go there
         self._q_est: np.ndarray | None = None
         self._attitude_history: deque[tuple[float, np.ndarray]] = deque(maxlen=ATTITUDE_HISTORY_PERIODS)
         self.autonomous_trajectory: NominalTrajectory | None = None
@@ -87,6 +93,7 @@ class FlightSoftware:
         self._hk_next: float | None = None
         self._estimate_next = float("-inf")
         self._time_report_period: float | None = None
+        self._time_rate_exponent = 0
         self._time_report_next: float | None = None
         self._time_reports_left = 0
         self._last_seen_obt: float | None = None
@@ -107,8 +114,10 @@ class FlightSoftware:
             pus.StopImaging: self._stop_imaging,
             pus.SetTimeReportRate: self._set_time_report_rate,
             pus.AdjustObt: self._adjust_obt,
+            pus.RekeySecurityAssociation: self._rekey,
             pus.RequestTimeReports: self._request_time_reports,
             pus.InsertActivities: self._insert_activities,
+            pus.InsertCaRelativeActivities: self._insert_ca_relative,
             pus.DeleteActivities: self._delete_activities,
             pus.TimeShiftActivities: self._time_shift,
             pus.SummaryReportRequest: self._summary_report,
@@ -132,13 +141,17 @@ class FlightSoftware:
         # the loops advance by the control period, not by OBT differences: a clock jump is not a long period
         dt = self.cfg.control_period_s
         self._tm = []
+        self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
         if self._prev_obt is not None and abs(obt - self._prev_obt - dt) > self.cfg.clock_jump_threshold_s:
             jump = obt - self._prev_obt - dt
+            self._time_status = pus.TimeReferenceStatus.STEPPED
             self._event(pus.ClockJumpEvent(step_s=jump), obt, f"on-board time jumped by {jump:+.6f} s")
         self._prev_obt = obt
         self._time_report(obt)
-        for raw in req.uplink:
-            self._telecommand(raw, obt, scheduled=False)
+        for unit in req.uplink:
+            packet = self._authenticated(unit, obt)
+            if packet is not None:
+                self._telecommand(packet, obt, scheduled=False)
         for entry in self.schedule.release_due(obt):
             self._telecommand(entry.payload, obt, scheduled=True)  # type: ignore[arg-type]
         q, omega = self._attitude(req, dt)
@@ -154,10 +167,12 @@ class FlightSoftware:
                          frame_request=frame_request, downlink=tuple(self._tm))
 
     # -- telemetry -----------------------------------------------------------------------------------------
-    def _send(self, report: pus.TmReport, obt: float) -> None:
-        self._tm.append(pus.encode_tm(report, self.cfg.apid, self._tm_seq, obt, self._msg_counter))
-        self._tm_seq = (self._tm_seq + 1) % pus.SEQ_COUNT_MODULO
-        self._msg_counter = (self._msg_counter + 1) % 0x10000
+    def _send(self, report: pus.TmReport, obt: float, destination_id: int | None = None) -> None:
+        """Downlink ``report`` to ``destination_id`` (unsolicited reports: the configured ground id)."""
+        dest = self.cfg.ground_id if destination_id is None else destination_id
+        seq, counter = self._counters.stamp(report.SERVICE, report.subservice(), dest)
+        self._tm.append(pus.encode_tm(report, self.cfg.apid, seq, obt, counter, destination_id=dest,
+                                      time_status=self._time_status))
 
     def _event(self, event: pus.TmReport, obt: float, text: str) -> None:
         self._send(event, obt)
@@ -173,31 +188,46 @@ class FlightSoftware:
         except pus.PacketError as exc:
             raise CommandRejected(RejectReason.BAD_ARGUMENT, f"scheduled TC: {exc}") from None
 
-    def _verify(self, rid: pus.RequestId, stage: pus.Stage, obt: float, code: int | None = None,
-                reason: str = "") -> None:
-        self._send(pus.Verification(stage=stage, request_id=rid, failure_code=code, reason=reason[:255]), obt)
+    def _authenticated(self, unit: bytes, obt: float) -> bytes | None:
+        """The TC packet of an uplinked unit that passes the security check; None (reported) otherwise."""
+        try:
+            return self.security.check(unit)
+        except sdls.SecurityRejection as rej:
+            self._log.append(f"OBT {obt:.2f} s: SECURITY: uplinked unit of {len(unit)} octets refused: {rej.why}")
+            if rej.request_id is not None:
+                self._send(pus.Verification(stage=pus.Stage.ACCEPTANCE, request_id=rej.request_id,
+                                            failure_code=int(rej.failure_code), reason=rej.why), obt)
+            self._send(pus.TcSecurityRejectedEvent(spi=rej.spi, arsn=rej.arsn, failure_code=int(rej.failure_code)),
+                       obt)
+            return None
 
     def _telecommand(self, raw: bytes, obt: float, scheduled: bool) -> None:
+        """Decode, verify (service 1, as the TC's acknowledgement flags ask) and execute one TC; a scheduled one is
+        verified at its release like one just received."""
         try:
             header, cmd = pus.decode_tc(raw, expected_apid=self.cfg.apid)
         except pus.PacketError as exc:
-            self._log.append(f"OBT {obt:.2f} s: rejected telecommand: {exc}")
+            self._log.append(f"OBT {obt:.2f} s: rejected {'scheduled ' if scheduled else ''}telecommand: {exc}")
             failure = pus.Verification.failure_for(exc)
-            if failure is not None:
+            if failure is not None:  # the source id is unreadable: the report goes to the ground
                 self._send(failure, obt)
             return
-        rid = header.request_id
-        if not scheduled:
-            self._verify(rid, pus.Stage.ACCEPTANCE, obt)
+        verification = TcVerification(header, lambda report, dest: self._send(report, obt, dest))
+        verification.accepted()
+        verification.started()
+        self._requester = header.source_id
         try:
             self._execute(cmd, obt)
         except CommandRejected as rej:
             self._log.append(f"OBT {obt:.2f} s: {type(cmd).__name__} refused: {rej.text}")
-            self._verify(rid, pus.Stage.COMPLETION, obt, 0x0100 + int(rej.reason), rej.text)
-            self._event(pus.CommandRejectedEvent(request_id=rid, failure_code=0x0100 + int(rej.reason)), obt,
+            code = 0x0100 + int(rej.reason)
+            verification.failed(pus.Stage.COMPLETION, code, rej.text)
+            self._event(pus.CommandRejectedEvent(request_id=header.request_id, failure_code=code), obt,
                         f"command rejected: {rej.text}")
             return
-        self._verify(rid, pus.Stage.COMPLETION, obt)
+        finally:
+            self._requester = None
+        verification.completed()
 
     def _execute(self, cmd: pus.TcCommand, obt: float) -> None:
         handler = self._handlers.get(type(cmd))
@@ -206,7 +236,7 @@ class FlightSoftware:
         handler(cmd, obt)
 
     def _ping(self, cmd: pus.Ping, obt: float) -> None:
-        self._send(pus.PingReply(), obt)
+        self._send(pus.PingReply(), obt, self._requester)
 
     def _set_mode(self, cmd: pus.SetMode, obt: float) -> None:
         self._mode_event(self.modes.handle(SetModeTrigger(cmd.mode), obt), obt)
@@ -225,6 +255,7 @@ class FlightSoftware:
 
     def _set_time_report_rate(self, cmd: pus.SetTimeReportRate, obt: float) -> None:
         self._time_report_period = float(2**cmd.rate_exponent)
+        self._time_rate_exponent = cmd.rate_exponent
         self._time_report_next = obt
         self._time_reports_left = -1
 
@@ -233,14 +264,30 @@ class FlightSoftware:
         self._clock_adjust_s = (self._clock_adjust_s or 0.0) + cmd.delta_s
         self._log.append(f"OBT {obt:.3f} s: commanded clock adjustment of {cmd.delta_s:+.6f} s")
 
+    def _rekey(self, cmd: pus.RekeySecurityAssociation, obt: float) -> None:
+        try:
+            self.security.install(cmd.spi, cmd.wrapped_key)
+        except ValueError as exc:
+            raise CommandRejected(RejectReason.BAD_ARGUMENT, f"rekey: {exc}") from None
+        self._log.append(f"OBT {obt:.2f} s: TC authentication: security association {cmd.spi} loaded")
+
     def _request_time_reports(self, cmd: pus.RequestTimeReports, obt: float) -> None:
         self._time_report_period = 1.0
+        self._time_rate_exponent = 0
         self._time_report_next = obt
         self._time_reports_left = cmd.count
 
     def _insert_activities(self, cmd: pus.InsertActivities, obt: float) -> None:
-        reqs = [ScheduleRequest(request_id=pus.request_id_of(a.tc_packet).seq_count, tag_obt_s=a.release_obt_s,
-                                payload=a.tc_packet, ca_offset_s=a.ca_offset_s) for a in cmd.activities]
+        self._schedule_insert([ScheduleRequest(request_id=pus.request_id_of(a.tc_packet).seq_count,
+                                               tag_obt_s=a.release_obt_s, payload=a.tc_packet)
+                               for a in cmd.activities], obt)
+
+    def _insert_ca_relative(self, cmd: pus.InsertCaRelativeActivities, obt: float) -> None:
+        self._schedule_insert([ScheduleRequest(request_id=pus.request_id_of(a.tc_packet).seq_count,
+                                               tag_obt_s=a.release_obt_s, payload=a.tc_packet,
+                                               ca_offset_s=a.ca_offset_s) for a in cmd.activities], obt)
+
+    def _schedule_insert(self, reqs: list[ScheduleRequest], obt: float) -> None:
         if self.recognizer is not None and self.schedule.ca_anchor_obt_s is None:
             self.schedule.reanchor_ca(self.trajectory.ca_time_obt_s)  # type: ignore[union-attr]
         rejections = self.schedule.insert(obt, reqs)
@@ -259,13 +306,12 @@ class FlightSoftware:
         entries = tuple(pus.ScheduleSummaryEntry(release_obt_s=e.tag_obt_s,
                                                  request_id=pus.request_id_of(e.payload))  # type: ignore[arg-type]
                         for e in self.schedule.listing())
-        self._send(pus.ScheduleSummaryReport(entries=entries), obt)
+        self._send(pus.ScheduleSummaryReport(entries=entries), obt, self._requester)
 
     def _detail_report(self, cmd: pus.DetailReportRequest, obt: float) -> None:
-        activities = tuple(pus.ScheduledActivity(release_obt_s=e.tag_obt_s, ca_offset_s=e.ca_offset_s,
-                                                 tc_packet=e.payload)  # type: ignore[arg-type]
+        activities = tuple(pus.ScheduledActivity(release_obt_s=e.tag_obt_s, tc_packet=e.payload)  # type: ignore[arg-type]
                            for e in self.schedule.listing())
-        self._send(pus.ScheduleDetailReport(activities=activities), obt)
+        self._send(pus.ScheduleDetailReport(activities=activities), obt, self._requester)
 
     def _load_trajectory(self, cmd: pus.UploadNominalTrajectory, obt: float) -> None:
         traj = NominalTrajectory(
@@ -433,7 +479,7 @@ class FlightSoftware:
         """A service 9 time report when due, first in the period's downlink so its delay on the link is known."""
         if self._time_report_period is not None and self._time_report_next is not None and \
                 obt >= self._time_report_next and self._time_reports_left != 0:
-            self._send(pus.TimeReport(obt_s=obt), obt)
+            self._send(pus.TimeReport(rate_exponent=self._time_rate_exponent, obt_s=obt), obt)
             self._time_report_next += self._time_report_period
             if self._time_reports_left > 0:
                 self._time_reports_left -= 1
@@ -450,7 +496,8 @@ class FlightSoftware:
                 mode=self.modes.mode, q=tuple(float(c) for c in q),
                 rate_rad_s=tuple(float(c) for c in omega), wheel_speed_rad_s=tuple(float(c) for c in wheel_speed),
                 wheel_momentum_nms=tuple(float(c) for c in wheel_h), pointing_error_rad=self.pointing_error_est_rad,
-                best_ca_obt_s=best_t, best_ca_distance_km=best_d, best_mse_rad2=mse), obt)
+                best_ca_obt_s=best_t, best_ca_distance_km=best_d, best_mse_rad2=mse,
+                **self.security.housekeeping()), obt)
         if self.recognizer is not None and self.recognizer.measurement_count > 0 and obt >= self._estimate_next:
             self._estimate_next = obt + self.cfg.housekeeping_period_s
             gt, gd, mse = self.recognizer.best_grid()

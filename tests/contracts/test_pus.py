@@ -126,11 +126,11 @@ def test_housekeeping_layout_is_as_documented() -> None:
         best_ca_distance_km=55.5,
         best_mse_rad2=None,
     )
-    assert HK_SIZE == 85
+    assert HK_SIZE == 91
     raw = encode_tm(hk, 0xC1, 1, 100.0, 0)
-    assert len(raw) == 6 + 7 + 7 + 85 + 2 == 107
+    assert len(raw) == 6 + 7 + 7 + 91 + 2 == 113
     d = raw[20:-2]
-    assert len(d) == 85
+    assert len(d) == 91
     assert struct.unpack(">H", d[0:2]) == (1,)
     assert (d[2], d[3], d[4]) == (4, 0b011, 3)
     assert struct.unpack(">4f", d[5:21]) == (0.5, -0.5, 0.25, 0.625)
@@ -248,8 +248,10 @@ def _tc(service: int, sub: int, app_data: bytes) -> bytes:
         (_tc(9, 1, b""), "SetTimeReportRate.rate_exponent"),
         (_tc(11, 5, b"\x00\x02" + RequestId(apid=1, seq_count=1).packed()), "DeleteActivities.request_ids[1]"),
         (_tc(11, 5, b"\x00\x01\x00\x01\xc0\x01"), "DeleteActivities.request_ids[0]"),
-        (_tc(11, 4, b"\x00\x01\x02" + bytes(7)), "InsertActivities.activities[0].tag_kind"),
-        (_tc(11, 4, b"\x00\x01\x00" + cuc_encode(1.0) + bytes(3)), "InsertActivities.activities[0].tc_packet"),
+        (_tc(11, 4, b"\x00\x01\x02" + bytes(6)), "InsertActivities.activities[0].release_obt_s"),
+        (_tc(11, 4, b"\x00\x01" + cuc_encode(1.0) + bytes(3)), "InsertActivities.activities[0].tc_packet"),
+        (_tc(200, 8, b"\x00\x01" + struct.pack(">d", -5.0) + cuc_encode(1.0) + bytes(3)),
+         "InsertCaRelativeActivities.activities[0].tc_packet"),
     ],
 )
 def test_bad_arguments_name_the_field(raw: bytes, field: str) -> None:
@@ -264,7 +266,7 @@ def test_bad_arguments_name_the_field(raw: bytes, field: str) -> None:
 def test_scheduled_tm_packet_is_rejected() -> None:
     """An activity wrapping a telemetry packet instead of a TC is a bad argument."""
     tm = encode_tm(PingReply(), 1, 0, 0.0, 0)
-    raw = _tc(11, 4, b"\x00\x01\x00" + cuc_encode(1.0) + tm)
+    raw = _tc(11, 4, b"\x00\x01" + cuc_encode(1.0) + tm)
     with pytest.raises(BadArgument, match="telemetry"):
         decode_tc(raw)
 

@@ -67,8 +67,9 @@ def test_timeline_upload_refuses_late_commands() -> None:
         {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},
     ]}).encode()
     # at UTC 0 with 33.4 s light time, C/A-300 s (about -130 s) is already past
-    insert, notes = timeline_request(text, "t.yaml", seg, utc_s=0.0)
-    assert len(insert.activities) == 1
+    inserts, notes = timeline_request(text, "t.yaml", seg, utc_s=0.0)
+    assert [len(i.activities) for i in inserts] == [1]
+    assert isinstance(inserts[0], pus.InsertCaRelativeActivities)
     assert any("row 1" in n for n in notes)
 
 

@@ -10,27 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from contracts import pus
+from contracts import pus, sdls
 from contracts.bus import free_tcp_port
 from contracts.steplog import STEP_RECORD, StepLog
 from tests.integration.conftest import DATA, flyby
 
 pytestmark = pytest.mark.integration
-
-
-@pytest.fixture(scope="module")
-def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The short scenario run twice with the same seed."""
-    base = tmp_path_factory.mktemp("runs")
-    outs = []
-    for i in (1, 2):
-        out = base / f"run{i}"
-        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), timeout=300)
-        assert r.returncode == 0, f"run {i} failed:\n{r.stdout}\n{r.stderr}\n" + "\n".join(
-            f"--- {n}.log\n{(out / f'{n}.log').read_text()[-3000:]}" for n in ("universe", "obsw", "ground")
-            if (out / f"{n}.log").exists())
-        outs.append(out)
-    return outs[0], outs[1]
 
 
 def _packets(run: Path) -> list[tuple[pus.TmHeader, object]]:
@@ -80,7 +65,10 @@ def test_killed_node_stops_the_others(tmp_path: Path) -> None:
     """Killing the OBSW mid-run makes universe and ground exit within the timeout, naming the OBSW."""
     ports = {n: free_tcp_port() for n in ("universe", "obsw", "ground")}
     ep = {n: f"tcp/127.0.0.1:{p}" for n, p in ports.items()}
-    common = ["--config", str(DATA / "short.yaml"), "--run-id", f"kill-{ports['universe']}", "--out", str(tmp_path)]
+    keys = tmp_path.parent / f"{tmp_path.name}-tc-keys.json"
+    sdls.write_key_file(keys, sdls.KeyRing.generate())
+    common = ["--config", str(DATA / "short.yaml"), "--run-id", f"kill-{ports['universe']}", "--out", str(tmp_path),
+              "--insecure", "--tc-keys", str(keys)]
     cmds = {
         "universe": ["--listen", ep["universe"], "--realtime"],
         "obsw": ["--listen", ep["obsw"], "--connect", ep["universe"]],

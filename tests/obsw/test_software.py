@@ -8,7 +8,7 @@ import pytest
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
-from contracts import pus
+from contracts import pus, sdls
 from contracts.messages import CentroidMeasurement, FrameMeta, SensorData, StepRequest
 from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
@@ -25,14 +25,19 @@ DT = ObswConfig().control_period_s
 Q0 = (0.0, 0.0, 0.0, 1.0)
 
 
+KEYS = sdls.KeyRing.generate()
+GROUND = sdls.Sender(KEYS)  # its anti-replay numbers only grow, so each new flight software accepts them
+
+
 def _fsw() -> FlightSoftware:
-    return FlightSoftware(ObswConfig())
+    return FlightSoftware(ObswConfig(), KEYS)
 
 
 def _request(step: int, obt_s: float, uplink: tuple[bytes, ...] = (), q: tuple | None = Q0,
              gyro: tuple[float, float, float] = (0.0, 0.0, 0.0), wheels: tuple[float, ...] = (0.0, 0.0, 0.0),
              frame: FrameMeta | None = None) -> StepRequest:
-    return StepRequest(step=step, obt_s=obt_s, uplink=uplink, frame=frame,
+    """A control period's inputs; the uplinked TC packets are secured as ground radiates them."""
+    return StepRequest(step=step, obt_s=obt_s, uplink=tuple(GROUND.secure(p) for p in uplink), frame=frame,
                        sensors=SensorData(star_tracker_q=q, gyro_rad_s=gyro, wheel_speed_rad_s=wheels))
 
 
@@ -44,14 +49,15 @@ def _of(tm: list[tuple[pus.TmHeader, pus.TmReport]], kind: type) -> list:
     return [r for _, r in tm if isinstance(r, kind)]
 
 
-def test_accepted_command_is_verified_at_acceptance_then_completion() -> None:
-    """A valid TC gets a successful acceptance report, its execution (a ping reply), then a successful completion."""
+def test_accepted_command_is_verified_at_acceptance_start_and_completion() -> None:
+    """A valid TC asking for every report gets successful acceptance and start reports, its execution (a ping
+    reply), then a successful completion."""
     fsw = _fsw()
     tc = pus.encode_tc(pus.Ping(), APID, 42)
     reply = fsw.step(_request(0, OBT0, (tc,)), None)
     kinds = [(type(r).__name__, getattr(r, "stage", None)) for _, r in _tm(reply.downlink)
              if isinstance(r, pus.Verification | pus.PingReply)]
-    assert kinds == [("Verification", pus.Stage.ACCEPTANCE), ("PingReply", None),
+    assert kinds == [("Verification", pus.Stage.ACCEPTANCE), ("Verification", pus.Stage.START), ("PingReply", None),
                      ("Verification", pus.Stage.COMPLETION)]
     for v in _of(_tm(reply.downlink), pus.Verification):
         assert v.success and v.request_id == pus.RequestId(apid=APID, seq_count=42)
@@ -86,7 +92,7 @@ def test_every_telecommand_is_executed_or_refused_as_unknown(packet: type) -> No
     tm = _tm(reply.downlink)
     stages = [(v.stage, v.failure_code) for v in _of(tm, pus.Verification)]
     code = 0x0100 + int(RejectReason.UNKNOWN_COMMAND)
-    assert stages == [(pus.Stage.ACCEPTANCE, None), (pus.Stage.COMPLETION, code)]
+    assert stages == [(pus.Stage.ACCEPTANCE, None), (pus.Stage.START, None), (pus.Stage.COMPLETION, code)]
     assert [e.failure_code for e in _of(tm, pus.CommandRejectedEvent)] == [code]
 
 
@@ -97,11 +103,12 @@ def test_illegal_mode_command_is_refused_with_a_completion_failure_and_an_event(
     reply = fsw.step(_request(0, OBT0, (tc,)), None)
     tm = _tm(reply.downlink)
     ver = _of(tm, pus.Verification)
-    assert [(v.stage, v.success) for v in ver] == [(pus.Stage.ACCEPTANCE, True), (pus.Stage.COMPLETION, False)]
+    assert [(v.stage, v.success) for v in ver] == [(pus.Stage.ACCEPTANCE, True), (pus.Stage.START, True),
+                                                   (pus.Stage.COMPLETION, False)]
     code = 0x0100 + 10  # RejectReason.ILLEGAL_TRANSITION in the OBSW's execution-failure range
-    assert ver[1].failure_code == code and "AUTONOMOUS_TRACKING" in ver[1].reason
+    assert ver[2].failure_code == code and "AUTONOMOUS_TRACKING" in ver[2].reason
     events = _of(tm, pus.CommandRejectedEvent)
-    assert len(events) == 1 and events[0].failure_code == code and events[0].request_id == ver[1].request_id
+    assert len(events) == 1 and events[0].failure_code == code and events[0].request_id == ver[2].request_id
     assert not _of(tm, pus.ModeChangedEvent)
     assert fsw.mode_name == "STANDBY"
 
@@ -131,7 +138,8 @@ def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
             assert ev.cause.startswith("COMMANDED")
             assert abs(header.obt_s - obt) < 2**-16
             done = _of(tm, pus.Verification)
-            assert [(v.stage, v.success, v.request_id.seq_count) for v in done] == [(pus.Stage.COMPLETION, True, 11)]
+            assert [(v.stage, v.success, v.request_id.seq_count) for v in done] == [
+                (stage, True, 11) for stage in (pus.Stage.ACCEPTANCE, pus.Stage.START, pus.Stage.COMPLETION)]
             assert reply.frame_request is not None
     assert released_at is not None and tag <= released_at < tag + DT
     assert fsw.mode_name == "ACQUISITION"
