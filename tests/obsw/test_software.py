@@ -10,6 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from contracts import pus
 from contracts.messages import FrameMeta, SensorData, StepRequest
+from contracts.task import Task
 from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
 from obsw.errors import RejectReason
@@ -108,7 +109,8 @@ def test_illegal_mode_command_is_refused_with_a_completion_failure_and_an_event(
 
 def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
     """A SetMode(ACQUISITION) scheduled at OBT0+1.55 s executes at the first period at or after its tag (not
-    before), reports its completion and the mode change stamped with that OBT, and starts imaging."""
+    before), reports its completion and the mode change stamped with the OBT the schedule task ran at in that
+    period, and starts imaging."""
     fsw = _fsw()
     tag = OBT0 + 1.55
     inner = pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 11)
@@ -129,7 +131,8 @@ def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
             header, ev = changes[0]
             assert (ev.from_mode, ev.to_mode) == (pus.Mode.STANDBY, pus.Mode.ACQUISITION)
             assert ev.cause.startswith("COMMANDED")
-            assert abs(header.obt_s - obt) < 2**-16
+            released = next(r for r in fsw.last_frame.runs if r.task == Task.SCHEDULE)
+            assert abs(header.obt_s - released.start_s) < 2**-16 and obt <= released.start_s < obt + DT
             done = _of(tm, pus.Verification)
             assert [(v.stage, v.success, v.request_id.seq_count) for v in done] == [(pus.Stage.COMPLETION, True, 11)]
             assert reply.frame_request is not None
@@ -177,16 +180,19 @@ def _two_bodies_frame(did_col_row: tuple[int, int], dim_col_row: tuple[int, int]
 
 
 def test_frame_line_of_sight_uses_the_attitude_at_exposure() -> None:
-    """A frame exposed one period before it is processed is turned into inertial with the attitude of its
-    exposure: the reported LOS is R(q_exposure) times the pinhole ray of Dimorphos's centroid."""
+    """A frame processed periods after its exposure (readout, FPGA stages, software) is turned into inertial with
+    the attitude of its exposure: the reported LOS is R(q_exposure) times the pinhole ray of Dimorphos's centroid."""
     fsw = _fsw()
     q_exp = Rotation.from_rotvec([0.2, 0.1, -0.4])
     q_now = q_exp * Rotation.from_rotvec([0.0, 0.02, 0.0])  # 1.1 deg later
     fsw.step(_request(0, OBT0, q=tuple(q_exp.as_quat())), None)
     frame = _two_bodies_frame((300, 240), (330, 220))
     meta = FrameMeta(frame_id=0, obt_s=OBT0, width=1024, height=1024, bit_depth=12, exposure_s=0.01)
-    reply = fsw.step(_request(1, OBT0 + DT, q=tuple(q_now.as_quat()), frame=meta), frame)
-    nav = _of(_tm(reply.downlink), pus.NavigationReport)
+    nav = _of(_tm(fsw.step(_request(1, OBT0 + DT, q=tuple(q_now.as_quat()), frame=meta), frame).downlink),
+              pus.NavigationReport)
+    for k in range(2, 6):
+        nav += _of(_tm(fsw.step(_request(k, OBT0 + k * DT, q=tuple(q_now.as_quat())), None).downlink),
+                   pus.NavigationReport)
     assert len(nav) == 1 and nav[0].dimorphos_col_row == pytest.approx((331.5, 221.5))
     f_px = 256.0 / np.tan(np.radians(ObswConfig().camera.fov_deg / 2))
     ray = np.array([331.5 - 255.5, 221.5 - 255.5, f_px])

@@ -227,3 +227,19 @@ def test_frame_shows_dimorphos_where_its_truth_pixel_says() -> None:
     # the period's motion of the line of sight across the fixed camera, closed form for a straight line: v b / r^2
     motion_px = 7000.0 * 55_000.0 / range_m**2 * 0.1 * F_1024
     assert motion_px > 2 * r_max_px
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.03, 0.1, 0.25])
+def test_new_torques_take_effect_after_the_actuation_delay(delay_s: float) -> None:
+    """Without friction, each rotor's absolute angular momentum grows over the period by the new torque times the
+    part of the period after the actuation delay (the previous torque, zero, acts before; a delay beyond the period
+    leaves it all to the previous torque)."""
+    wheels = {"viscous_friction_nms": 0.0, "coulomb_friction_nm": 0.0}
+    sc = scenario(start_s=140.0, end_s=140.3,
+                  spacecraft=SpacecraftConfig(initial_attitude_error_deg=0.0, wheels=wheels))
+    u = compose.universe(sc)
+    u.begin()
+    tau = 0.005
+    u.advance(StepReply(step=0, wheel_torque_nm=(tau,) * 3, actuation_delay_s=delay_s))
+    rotor = u.dynamics.rotor_inertia_kgm2 * (np.asarray(u.state.omega_rad_s) + np.asarray(u.state.wheel_speed_rad_s))
+    assert rotor == pytest.approx([tau * (0.1 - min(delay_s, 0.1))] * 3, abs=1e-12)
