@@ -2,8 +2,8 @@
 
 One call of ``minor_frame`` is one minor frame, started by the on-board time tick. The slots the table releases in
 it run in table order on one processor core, without preemption: a task is released at its slot's offset into the
-minor frame, starts when it is released and the core is free (never earlier), and finishes after its execution time (the
-timing model's, times the processor's slow-down factor). A finish after the slot's deadline is a task overrun;
+minor frame, starts when it is released and the core is free (never earlier), and finishes after its execution
+time (the timing model's, times the processor's slow-down factor). A finish after the slot's deadline is a task overrun;
 work of a minor frame still running at the next tick is a minor frame overrun, and the core's backlog is carried
 into the next minor frame (as a time after its tick, so an OBT jump does not stretch it). When the core is still
 busy at a slot's deadline, a task that is not critical is skipped (its events wait for its next release); a

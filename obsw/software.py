@@ -199,8 +199,9 @@ class FlightSoftware:
         report = self.executive.minor_frame(tick, req.cpu_slowdown)
         self.last_frame = report
         if report.overrun and not self._frame_overrunning:
-            late = report.busy_until_s - tick - self.cfg.control_period_s
-            self._event(pus.FrameOverrunEvent(minor_frame=report.minor_frame, late_s=late), tick,
+            next_tick = tick + self.cfg.control_period_s  # the tick that finds the work still running
+            late = report.busy_until_s - next_tick
+            self._event(pus.FrameOverrunEvent(minor_frame=report.minor_frame, late_s=late), next_tick,
                         f"minor frame {report.minor_frame} overran the next tick by {late * 1e3:.1f} ms")
         self._frame_overrunning = report.overrun
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
@@ -317,6 +318,7 @@ class FlightSoftware:
         """The wheel torques from the tracking loop and the PD law; the wheel momentum limit is checked."""
         used = act.of(EventKind.MEASUREMENT)
         seen = None if not used else used[-1].payload
+        # the loops advance by the control period, not by OBT differences: a clock jump is not a long period
         tau = self._control(act.tick_s, self.cfg.control_period_s, self._q, self._omega, self._wheel_h,
                             seen)  # type: ignore[arg-type]
         self._torque = tau

@@ -10,21 +10,13 @@ reports. A change of flight behaviour must record the digest again: ``telemetry_
 from __future__ import annotations
 
 from scenario.model import scenario_from_dict
+from tests.obsw.test_software import SHORT_FLYBY
 from tests.obsw.zero_time import telemetry_digest
 from timeline.parse import timeline_from_data
 
-WINDOW = {
-    "name": "zero-time-window",
-    "seed": 3,
-    "obsw": {"timing": {"modelled": False}},
-    "universe": {
-        "start_s": 110.0,  # C/A-58 s to C/A-28 s
-        "end_s": 140.0,
-        "uncertainty": {"ca_time_offset_sigma": -0.4, "ca_distance_offset_sigma": 0.4},
-        "save_frames_every": 0,
-        "link": {"one_way_light_time_s": 1.0},
-    },
-}
+# the short flyby of test_software, C/A-58 s to C/A-28 s, with the processing times off
+WINDOW = {**SHORT_FLYBY, "name": "zero-time-window", "obsw": {"timing": {"modelled": False}},
+          "universe": {**SHORT_FLYBY["universe"], "end_s": 140.0}}
 TIMELINE = {
     "description": "acquisition at C/A-44 s, frames every 0.5 s, two time reports",
     "commands": [
