@@ -43,7 +43,7 @@ from flyby.inprocess import run_in_process  # noqa: E402
 from scenario.model import load_run_inputs, scenario_from_dict  # noqa: E402
 
 NOMINAL = ROOT / "configs" / "scenarios" / "nominal.yaml"
-LATENCIES_S = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0)
+LATENCIES_S = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0)
 TICK_MARGIN_S = 1e-6  # a latency of n periods lands just before the n-th tick, never just after it
 NEAR_CA_S = 60.0  # the fast part of the flyby, where the line of sight turns up to 7 deg/s
 
@@ -126,20 +126,22 @@ def plot(points: list[Point], scenario: str, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, (a, b) = plt.subplots(2, 1, figsize=(7, 6.5), sharex=True)
-    for prop, style in ((True, "o-"), (False, "s--")):
+    for prop, colour in ((True, "tab:blue"), (False, "tab:orange")):
         pts = sorted((p for p in points if p.propagate == prop), key=lambda p: p.latency_s)
         label = "propagated to the present" if prop else "taken as if fresh"
-        a.plot([p.latency_s for p in pts], [100 * (p.in_view_fraction or 0.0) for p in pts], style, label=label)
-        b.plot([p.latency_s for p in pts], [p.max_pointing_error_deg or 0.0 for p in pts], style, label=label)
-        b.plot([p.latency_s for p in pts], [p.max_error_near_ca_deg or 0.0 for p in pts], style, alpha=0.4,
+        x = [p.latency_s for p in pts]
+        a.plot(x, [100 * (p.in_view_fraction or 0.0) for p in pts], "o-", color=colour, label=label)
+        b.plot(x, [p.max_pointing_error_deg or float("nan") for p in pts], "o-", color=colour, label=label)
+        b.plot(x, [p.max_error_near_ca_deg or float("nan") for p in pts], "s:", color=colour,
                label=f"{label}, within {NEAR_CA_S:g} s of C/A")
+    b.set_yscale("log")
     a.set_ylabel("frames with Dimorphos in view, %")
     b.set_ylabel("largest pointing error, deg")
     b.axhline(1.45, color="r", lw=0.8, label="half field of view")
     b.set_xlabel("imaging latency (exposure to line of sight on board), s")
     a.set_title(f"{scenario}: imaging latency sweep")
-    a.legend()
-    b.legend()
+    a.legend(fontsize=8)
+    b.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
