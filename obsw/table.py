@@ -3,8 +3,8 @@
 A major frame is ``minor_frames`` minor frames; a minor frame is one control period, started by the on-board time
 tick. A slot binds a task to a window of the minor frame, released at ``offset_fraction`` of it after the tick
 and due at ``deadline_fraction`` of it (fractions, so the table holds at any control rate), at a rate: every
-``every``-th minor frame, from minor frame ``phase`` of the major frame. The slots released in a minor frame run in table order, one after the other, on the one processor core the
-navigation software runs on. As in the schedule definition table of cFS SCH or the rate groups of F Prime, the
+``every``-th minor frame, from minor frame ``phase`` of the major frame. The slots released in a minor frame run in
+table order, one after the other, on the one processor core the navigation software runs on. As in the schedule definition table of cFS SCH or the rate groups of F Prime, the
 order of work is data (``obsw.executive`` in the scenario), not code.
 
 The default table reproduces the zero-time flight software's order of work, every task in every minor frame,
