@@ -43,7 +43,7 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
     decodes every message, as the bus does; ``record``: a file to record the flight software's inputs and outputs
     into, as the OBSW node does (``contracts.steplog``; ``flyby replay`` reads it)."""
     sim = compose.universe(scenario)
-    keys = KeyRing.generate()  # fresh keys held by both ends, as ``flyby run`` makes for each run
+    keys = KeyRing.derived(scenario.seed)  # fixed by the seed: an in-process uplink is reproduced byte for byte
     fsw = compose.flight_software(scenario, keys)
     ground = compose.ground_segment(scenario, timeline, keys)
     out = InProcessRun()

@@ -417,6 +417,8 @@ FAULT_RULES: dict[str, tuple[bool, str | None]] = {
     "plume_brightening": (False, "optional"),
     "clock_jump": (False, "required"),
     "link_outage": (False, None),
+    "cpu_overload": (False, "required"),
+    "imaging_latency": (False, "required"),
 }
 """What each fault kind takes; anything else given is refused (it would be ignored in flight)."""
 INSTANTANEOUS_FAULTS = ("clock_jump",)  # acts at start_s: its window may be empty
@@ -436,6 +438,8 @@ class FaultConfig(Config):
         "plume_brightening",
         "clock_jump",
         "link_outage",
+        "cpu_overload",
+        "imaging_latency",
     ]
     start_s: float = Field(description="true start time, s after the epoch")
     end_s: float = Field(description="true end time, s after the epoch")
@@ -443,7 +447,9 @@ class FaultConfig(Config):
     magnitude: float | None = Field(
         None,
         description="size of the fault in the unit of its kind: gyro_bias_step, deg/s added on every axis; "
-        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s",
+        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s; cpu_overload, factor (>= 1) "
+        "by which the on-board processor runs slower; imaging_latency, s added between a frame's exposure and its "
+        "arrival at the processor",
     )
 
     @field_validator("end_s")
@@ -470,6 +476,10 @@ class FaultConfig(Config):
             out.append(f"magnitude: a {self.kind} fault takes no magnitude")
         if self.kind == "plume_brightening" and self.magnitude is not None and self.magnitude <= 0:
             out.append(f"magnitude: a brightness factor must be > 0, got {self.magnitude:g}")
+        if self.kind == "cpu_overload" and self.magnitude is not None and self.magnitude < 1:
+            out.append(f"magnitude: a processor slow-down factor must be >= 1, got {self.magnitude:g}")
+        if self.kind == "imaging_latency" and self.magnitude is not None and self.magnitude < 0:
+            out.append(f"magnitude: an imaging delay must be >= 0 s, got {self.magnitude:g}")
         if self.end_s == self.start_s and self.kind not in INSTANTANEOUS_FAULTS:
             out.append(f"end_s: the window {self.start_s:g}..{self.end_s:g} s is empty: the fault would never act")
         return out

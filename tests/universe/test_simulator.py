@@ -270,3 +270,19 @@ def test_any_attitude_and_rate_gives_valid_frames_and_decodable_finite_truth(q, 
     assert decoded.truth == step.truth and len(step.truth) == 4
     assert all(finite_or_absent(r) for r in decoded.truth)
     assert sum(r.frame_id is not None for r in decoded.truth) == 3
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.03, 0.1, 0.25])
+def test_new_torques_take_effect_after_the_actuation_delay(delay_s: float) -> None:
+    """Without friction, each rotor's absolute angular momentum grows over the period by the new torque times the
+    part of the period after the actuation delay (the previous torque, zero, acts before; a delay beyond the period
+    leaves it all to the previous torque)."""
+    wheels = {"viscous_friction_nms": 0.0, "coulomb_friction_nm": 0.0}
+    sc = scenario(start_s=140.0, end_s=140.3,
+                  spacecraft=SpacecraftConfig(initial_attitude_error_deg=0.0, wheels=wheels))
+    u = compose.universe(sc)
+    u.begin()
+    tau = 0.005
+    u.advance(StepReply(step=0, wheel_torque_nm=(tau,) * 3, actuation_delay_s=delay_s))
+    rotor = u.dynamics.rotor_inertia_kgm2 * (np.asarray(u.state.omega_rad_s) + np.asarray(u.state.wheel_speed_rad_s))
+    assert rotor == pytest.approx([tau * (0.1 - min(delay_s, 0.1))] * 3, abs=1e-12)
