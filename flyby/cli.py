@@ -9,6 +9,7 @@ from pathlib import Path
 
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
+from contracts.steplog import FRAME_KEEPING
 from scenario.model import Scenario, load_run_inputs, timeline_checks
 
 
@@ -46,7 +47,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     scenario = _load_or_report(args.scenario)
     if scenario is None:
         return EXIT_CONFIG
-    return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level)
+    return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level,
+                  record_frames=args.record_frames)
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -124,6 +126,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<UTC stamp>)")
     r.add_argument("--realtime", action="store_true", help="pace the universe to the wall clock")
     r.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    r.add_argument("--record-frames", choices=FRAME_KEEPING, default=FRAME_KEEPING[0],
+                   help="how the step record (obsw_steps.rec) keeps camera frames: by reference (default: a digest, "
+                   "the replay renders them again from the scenario and the truth) or raw (the pixels, about 0.55 MB "
+                   "a frame; replays with a build whose universe renders differently)")
     r.set_defaults(func=cmd_run)
     v = sub.add_parser("validate", help="check scenario files and print every error with its path")
     v.add_argument("files", type=Path, nargs="+")

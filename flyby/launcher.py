@@ -30,6 +30,7 @@ from contracts.errors import DecodeError
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_PEER
 from contracts.messages import Shutdown, Status, decode
 from contracts.runtime import Attachment
+from contracts.steplog import FrameKeeping
 from scenario.model import Scenario
 
 
@@ -65,13 +66,16 @@ def run_folder(scenario: Scenario, out: Path | None) -> Path:
 
 
 def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], realtime: bool,
-                  log_level: str, python: str = sys.executable) -> dict[str, list[str]]:
-    """The command line of each node: universe listens, obsw connects to it, ground connects to both."""
+                  log_level: str, python: str = sys.executable,
+                  record_frames: FrameKeeping = "reference") -> dict[str, list[str]]:
+    """The command line of each node: universe listens, obsw connects to it, ground connects to both; the OBSW's
+    step record keeps camera frames as ``record_frames`` says."""
     ep = {n: f"tcp/127.0.0.1:{ports[n]}" for n in NODES}
     common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level]
     return {
         "universe": [python, "-m", "universe", *common, "--listen", ep["universe"], *(["--realtime"] if realtime else [])],
-        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"]],
+        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"],
+                 "--record-frames", record_frames],
         "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
                    "--connect", ep["obsw"]],
     }
@@ -89,14 +93,15 @@ def _progress_line(watch: Watch, end_s: float) -> str:
 
 
 def launch(config: Path, scenario: Scenario, out: Path | None = None, realtime: bool = False,
-           log_level: str = "INFO", stream: IO[str] = sys.stdout) -> int:
-    """Run the scenario with the three nodes as local processes; return an exit code (0 = success)."""
+           log_level: str = "INFO", stream: IO[str] = sys.stdout, record_frames: FrameKeeping = "reference") -> int:
+    """Run the scenario with the three nodes as local processes; return an exit code (0 = success).
+    ``record_frames``: how the OBSW's step record keeps camera frames (``contracts.steplog``)."""
     folder = run_folder(scenario, out)
     shutil.copyfile(config, folder / "scenario.yaml")
     run_id = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{folder.name}-{os.getpid()}")
     keys = Keys(run_id)
     ports = {n: free_tcp_port() for n in NODES}
-    cmds = node_commands(config, run_id, folder, ports, realtime, log_level)
+    cmds = node_commands(config, run_id, folder, ports, realtime, log_level, record_frames=record_frames)
     print(f"run folder: {folder}", file=stream)
     print(f"run id {run_id}; operator console: flyby ground --connect tcp/127.0.0.1:{ports['ground']} "
           f"--run-id {run_id} --watch", file=stream)
