@@ -5,6 +5,9 @@ The regression check of a flight-software change against recorded flybys (nomina
 an unchanged build gives the same replies, bit for bit; a changed one gets a diff by packet type, parameter and time
 (first divergence, largest difference) as text and as an HTML page. ``--set obsw.PATH=VALUE`` replays with a
 changed on-board configuration instead (a gain, a threshold), without editing any file.
+
+Camera frames kept by reference (the default) are rendered again from the recorded scenario and the truth at their
+exposure (``flyby.recorded_frames``) and checked against their recorded digests; raw ones are read from the record.
 """
 
 from __future__ import annotations
@@ -24,10 +27,13 @@ from pydantic import ValidationError
 
 from analysis.page import _CSS, _table
 from analysis.stepdiff import StepDiff
+from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG, EXIT_OK
 from contracts.steplog import STEP_RECORD, StepLog, StepLogError
+from flyby.recorded_frames import FrameMismatch, RecordedFrames, RecordedFramesError
 from obsw.config import ObswConfig
 from obsw.software import FlightSoftware
+from scenario.model import Scenario, load_scenario
 
 
 class ReplayInputError(ValueError):
@@ -46,6 +52,7 @@ class Replay:
     recorded_torque_nm: list[tuple[float, ...]] = field(default_factory=list)
     replayed_torque_nm: list[tuple[float, ...]] = field(default_factory=list)
     replayed_steps: int = 0
+    rendered_frames: int = 0  # frames kept by reference, rendered again and found identical
     unanswered_steps: int = 0  # recorded requests whose reply the record lacks (a run cut short)
     truncated: bool = False
     crash: str | None = None  # the flight software raised: where and what
@@ -86,19 +93,24 @@ def changed_config(recorded: dict[str, Any], changes: Sequence[str]) -> ObswConf
         raise ReplayInputError(f"obsw.{where}: {e['msg']}") from None
 
 
-def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = ()) -> Replay:
+def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = (),
+           scenario: Scenario | None = None) -> Replay:
     """Replay a run's record (``run``: its folder or the record file) through ``FlightSoftware``, built from
-    ``obsw`` if given, else from the recorded configuration with ``changes`` applied."""
+    ``obsw`` if given, else from the recorded configuration with ``changes`` applied; frames kept by reference are
+    rendered from ``scenario`` if given, else from the recorded one. Raises FrameMismatch at the first frame that
+    renders differently from the recorded one, RecordedFramesError if one cannot be rendered."""
     path = record_path(run)
     log = StepLog(path)
     if obsw is None:
         obsw = changed_config(log.header.get("obsw", {}), changes)
     fsw = FlightSoftware(obsw)
+    frames = RecordedFrames(path, log.header, scenario)
     out = Replay(path, log.header, list(changes), StepDiff())
-    for st in log.steps():
+    for st, frame in frames.with_pixels(log.steps()):
         req = st.request
+        out.rendered_frames += st.frame_digest is not None
         try:
-            reply = fsw.step(req, st.frame)
+            reply = fsw.step(req, frame)
         except Exception as exc:  # noqa: BLE001 - a changed build that raises is a finding, reported as one
             out.crash = (f"step {req.step}, OBT {req.obt_s:.3f} s: the flight software raised "
                          f"{type(exc).__name__}: {exc}")
@@ -119,10 +131,15 @@ def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = (
 def summary_lines(r: Replay) -> list[str]:
     """What the replay found, as printed and at the top of the text and HTML files."""
     h = r.header
-    what = f"scenario {h.get('scenario', '?')}, seed {h.get('seed', '?')}"
+    sc = h.get("scenario")  # format 1 recorded the scenario's name and seed, format 2 the whole scenario
+    name, seed = (sc.get("name", "?"), sc.get("seed", "?")) if isinstance(sc, dict) else (sc or "?", h.get("seed", "?"))
     build = "the flight software as installed now" + (f", with {', '.join(r.changes)}" if r.changes else "")
     span = f"OBT {r.obt_s[0]:.3f}..{r.obt_s[-1]:.3f} s" if r.obt_s else "no step"
-    lines = [f"replay of {r.record} ({what}): {r.replayed_steps} control periods ({span}) through {build}"]
+    lines = [f"replay of {r.record} (scenario {name}, seed {seed}): {r.replayed_steps} control periods ({span}) "
+             f"through {build}"]
+    if r.rendered_frames:
+        lines.append(f"{r.rendered_frames} camera frames kept by reference rendered again, each identical to the "
+                     "recorded one (BLAKE2b-64 of its pixels)")
     if r.truncated or r.unanswered_steps:
         lines.append(f"the record ends early: {r.unanswered_steps} request(s) without a recorded reply"
                      + (", the file cut inside a record" if r.truncated else ""))
@@ -210,10 +227,18 @@ def html_report(r: Replay) -> str:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    """Replay a run, print the finding, write replay.txt and replay.html; exit 0 identical, 4 different."""
+    """Replay a run, print the finding, write replay.txt and replay.html; exit 0 identical, 4 different, 2 no
+    usable record or a frame that renders differently from the recorded one."""
     try:
-        result = replay(args.run, changes=args.set)
-    except (StepLogError, ReplayInputError) as exc:
+        scenario = None if args.scenario is None else load_scenario(args.scenario)
+    except ScenarioError as err:
+        print(f"flyby replay: {err.source}: invalid scenario", file=sys.stderr)
+        for line in err.problems:
+            print(f"  {line}", file=sys.stderr)
+        return EXIT_CONFIG
+    try:
+        result = replay(args.run, changes=args.set, scenario=scenario)
+    except (StepLogError, ReplayInputError, RecordedFramesError, FrameMismatch) as exc:
         print(f"flyby replay: {exc}", file=sys.stderr)
         return EXIT_CONFIG
     text = text_report(result)
@@ -229,9 +254,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``flyby replay`` on the CLI's sub-parsers."""
     p = sub.add_parser("replay", help="replay a recorded run through the flight software as installed now and diff "
-                       "its torques and telemetry (exit 0 identical, 4 different)", description=__doc__)
+                       "its torques and telemetry (exit 0 identical, 4 different, 2 unusable record or a frame "
+                       "that renders differently)", description=__doc__)
     p.add_argument("run", type=Path, help=f"run folder (with its {STEP_RECORD}) or the record file")
     p.add_argument("--set", action="append", default=[], metavar="PATH=VALUE",
                    help="replay with this on-board setting changed, e.g. control.kp_nm_per_rad=0.3 (repeatable)")
+    p.add_argument("--scenario", type=Path, default=None, metavar="FILE",
+                   help="render the frames the record keeps by reference from this scenario instead of the recorded "
+                   "one (a recorded scenario this build no longer reads)")
     p.add_argument("--out", type=Path, default=None, help="folder for replay.txt and replay.html (default RUN/replay)")
     p.set_defaults(func=cmd_replay)
