@@ -16,6 +16,9 @@ One file per run, ``obsw_steps.rec``: a gzip stream (RFC 1952) of records ``[kin
 - ``F``: the camera frame of the preceding request by value (``frames: raw``, and every frame of format 1): its
   16-bit little-endian pixels as two byte planes, every low octet then every high octet (the high plane of a 12-bit
   frame is nearly constant, so deflate packs the planes about 20 % smaller than interleaved pixels);
+- ``A``: the outcomes of the telecommand authentication checks the software made in the period, in order, as JSON:
+  ``{"tc": HEX}`` for a TC packet that passed, ``{"rejected": {code, why, spi, arsn, request_id}}`` for a refusal.
+  The keys are not kept (not in the run folder, by design), so a replay without them takes these outcomes;
 - ``R``: the ``StepReply`` to the preceding request, as on the bus (torques, frame request, telemetry packets).
 
 A frame without pixels (centroid-level fidelity: the request's frame metadata carries the measurement) has neither
@@ -41,6 +44,8 @@ import numpy as np
 
 from contracts.errors import DecodeError, FlybyError
 from contracts.messages import StepReply, StepRequest, decode, encode
+from contracts.packet_errors import FailureCode, RequestId
+from contracts.sdls import SecurityRejection
 
 FORMAT = 2
 READABLE_FORMATS = (1, 2)
@@ -148,14 +153,16 @@ class StepLogWriter:
             self._thread = threading.Thread(target=self._drain, name="step-record", daemon=True)
             self._thread.start()
 
-    def step(self, request: StepRequest, blob: bytes, reply: StepReply, truth: FrameTruth | None = None) -> None:
+    def step(self, request: StepRequest, blob: bytes, reply: StepReply, truth: FrameTruth | None = None,
+             verdicts: Sequence[bytes | SecurityRejection] = ()) -> None:
         """Record one control period: the request as the software got it, the frame's pixels (kept by reference or
-        raw), its reply, and the truth the frame was rendered with if the recorder knows it (kept by reference)."""
+        raw), its reply, the truth the frame was rendered with if the recorder knows it (kept by reference), and the
+        outcomes of the telecommand authentication checks made in the period (a replay without the keys uses them)."""
         self.steps += 1
         if self._queue is not None:
-            self._queue.put((request, blob, reply, truth))
+            self._queue.put((request, blob, reply, truth, tuple(verdicts)))
         else:
-            self._write_step(request, blob, reply, truth)
+            self._write_step(request, blob, reply, truth, tuple(verdicts))
 
     def close(self) -> None:
         """Write what is waiting and finish the gzip stream."""
@@ -181,8 +188,11 @@ class StepLogWriter:
         while (item := self._queue.get()) is not None:
             self._write_step(*item)
 
-    def _write_step(self, request: StepRequest, blob: bytes, reply: StepReply, truth: FrameTruth | None) -> None:
+    def _write_step(self, request: StepRequest, blob: bytes, reply: StepReply, truth: FrameTruth | None,
+                    verdicts: tuple[bytes | SecurityRejection, ...] = ()) -> None:
         parts = [_record(b"Q", encode(request))]
+        if verdicts:
+            parts.append(_record(b"A", json.dumps([verdict_json(v) for v in verdicts]).encode()))
         if request.frame is not None and blob:
             if self.frames == "raw":
                 parts.append(_record(b"F", frame_planes(blob)))
@@ -202,6 +212,23 @@ class StepLogWriter:
             self.error = f"{self.path}: recording stopped after {self.steps} steps: {exc}"
 
 
+def verdict_json(v: bytes | SecurityRejection) -> dict[str, Any]:
+    """One authentication outcome as JSON: the TC packet that passed, or the rejection's fields."""
+    if isinstance(v, bytes):
+        return {"tc": v.hex()}
+    rid = None if v.request_id is None else [v.request_id.apid, v.request_id.seq_count]
+    return {"rejected": {"code": int(v.failure_code), "why": v.why, "spi": v.spi, "arsn": v.arsn, "request_id": rid}}
+
+
+def verdict_from_json(d: dict[str, Any]) -> bytes | SecurityRejection:
+    """The authentication outcome ``verdict_json`` wrote; ValueError if it is not one."""
+    if "tc" in d:
+        return bytes.fromhex(d["tc"])
+    r = d["rejected"]
+    rid = None if r["request_id"] is None else RequestId(apid=r["request_id"][0], seq_count=r["request_id"][1])
+    return SecurityRejection(FailureCode(r["code"]), r["why"], r["spi"], r["arsn"], rid)
+
+
 @dataclass(frozen=True)
 class RecordedStep:
     """One control period as recorded: the request, its frame's pixels (None without a raw frame), its frame's
@@ -212,6 +239,7 @@ class RecordedStep:
     frame: np.ndarray | None = None
     reply: StepReply | None = None
     frame_digest: bytes | None = None
+    verdicts: tuple[bytes | SecurityRejection, ...] = ()  # the authentication outcomes of the period, in order
     frame_truth: FrameTruth | None = None
 
 
@@ -249,6 +277,10 @@ class StepLog:
                     if pending is not None:
                         yield RecordedStep(pending, reply=None, **frame)
                     pending, frame = decode(StepRequest, payload)[0], {}
+                elif kind == b"A":
+                    if pending is None:
+                        raise StepLogError(f"{self.path}: an authentication record follows no request")
+                    frame["verdicts"] = tuple(verdict_from_json(v) for v in json.loads(payload))
                 elif kind in (b"F", b"D", b"T"):
                     meta = pending.frame if pending is not None else None
                     if meta is None:

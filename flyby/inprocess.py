@@ -50,8 +50,9 @@ def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through
     ground = compose.ground_segment(scenario, timeline, keys)
     out = InProcessRun()
     writer = None if record is None else StepLogWriter(
-        record, {"scenario": scenario.model_dump(mode="json"), "obsw": fsw.cfg.model_dump(mode="json")},
-        frames=record_frames)
+        record, {"scenario": scenario.model_dump(mode="json"), "obsw": fsw.cfg.model_dump(mode="json"),
+                 "tc_keys": "derived from the seed"}, frames=record_frames)
+    fsw.security.keep_verdicts = writer is not None
     try:
         _loop(sim, fsw, ground, out, through_codec, on_step, max_steps, writer)
         out.uploads = list(ground.uploads)
@@ -91,7 +92,7 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
         if writer is not None:
             # the universe has not advanced yet: its time and state are those the frame was rendered with
             truth = None if frame is None else FrameTruth.of(sim.t_s, sim.state.q, sim.state.omega_rad_s)
-            writer.step(request, blob if frame is not None else b"", reply, truth)
+            writer.step(request, blob if frame is not None else b"", reply, truth, fsw.security.take_verdicts())
         if on_step is not None:
             on_step(request, reply, frame)
         out.log += [f"universe: {x}" for x in sim.take_log()] + [f"obsw: {x}" for x in fsw.take_log()]

@@ -70,7 +70,7 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig, record: StepLo
             req = req.model_copy(update={"frame": None})
         reply = fsw.step(req, frame)
         if record is not None:
-            record.step(req, got.blob if frame is not None else b"", reply)
+            record.step(req, got.blob if frame is not None else b"", reply, verdicts=fsw.security.take_verdicts())
         for line in fsw.take_log():
             log.info("%s", line)
         bus.sim_time_s = req.obt_s
@@ -95,6 +95,7 @@ def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: st
     if record is not None:
         writer = StepLogWriter(record, {**(record_header or {}), "obsw": fsw.cfg.model_dump(mode="json")},
                                frames=record_frames)
+        fsw.security.keep_verdicts = True
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "obsw", WallClock(), log)
         bus.subscribe(keys.step, StepRequest)

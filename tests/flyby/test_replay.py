@@ -17,13 +17,14 @@ import pytest
 import yaml
 
 from analysis.stepdiff import COMMANDS
+from contracts import sdls
 from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG, EXIT_OK
 from contracts.messages import FrameMeta, SensorData, StepReply, StepRequest, encode
-from contracts.steplog import STEP_RECORD, StepLog, StepLogWriter
+from contracts.steplog import STEP_RECORD, StepLog, StepLogWriter, _record
 from flyby.cli import main
 from flyby.inprocess import run_in_process
 from flyby.recorded_frames import FrameMismatch, RecordedFramesError
-from flyby.replay import replay
+from flyby.replay import ReplayInputError, replay
 from ground.node import TruthLog
 from obsw.config import ObswConfig
 from obsw.software import FlightSoftware
@@ -139,7 +140,7 @@ def test_changed_gain_diverges_where_torques_first_differ(recorded: tuple[Scenar
     """The replay's first divergence is the first period whose commanded torques differ from the recorded ones."""
     scenario, run, captured = recorded
     cfg = _changed(scenario.obsw, section, name, value)
-    fsw = FlightSoftware(cfg)
+    fsw = FlightSoftware(cfg, sdls.KeyRing.derived(scenario.seed))  # the keys an in-process run derives
     expected = None
     for req, frame, reply in captured:
         if fsw.step(req, frame).wheel_torque_nm != reply.wheel_torque_nm:
@@ -256,3 +257,31 @@ def test_record_with_a_frame_missing_is_refused(tmp_path: Path) -> None:
     with pytest.raises(RecordedFramesError, match="frame 1 .step 0, OBT 1.000 s. is not frame 0"):
         replay(tmp_path)
     assert main(["replay", str(tmp_path), "--out", str(tmp_path)]) == EXIT_CONFIG
+
+
+def test_a_replay_without_keys_takes_the_recorded_authentication_outcomes(recorded: tuple[Scenario, Path, Captured],
+                                                                          tmp_path: Path) -> None:
+    """A record whose keys are not kept (a run over the bus) replays identically on the recorded outcomes of the
+    authentication checks, and a unit that is not the recorded one is refused as unusable input."""
+    _, run, _ = recorded
+    log = StepLog(run / STEP_RECORD)
+    assert any(st.verdicts for st in log.steps())  # the run's uplink was checked, and the outcomes recorded
+    header = {k: v for k, v in log.header.items() if k != "tc_keys"}  # as the OBSW node records it
+    keyless = tmp_path / STEP_RECORD
+    records = list(StepLog(run / STEP_RECORD)._read_records())
+    with gzip.open(keyless, "wb") as f:  # the same records under the header of a run whose keys are not kept
+        f.write(_record(b"H", json.dumps(header).encode()))
+        f.write(b"".join(_record(kind, payload) for kind, payload in records[1:]))
+    result = replay(keyless)
+    assert result.identical, result.diff.rows()
+    assert result.authentication.startswith("the recorded outcomes")
+    tampered = tmp_path / "tampered.rec"
+    first_a = next(i for i, (kind, _) in enumerate(records) if kind == b"A")
+    outcomes = json.loads(records[first_a][1])
+    outcomes[0] = {"tc": bytes(20).hex()} if "tc" in outcomes[0] else outcomes[0]
+    with gzip.open(tampered, "wb") as f:
+        f.write(_record(b"H", json.dumps(header).encode()))
+        f.write(b"".join(_record(kind, json.dumps(outcomes).encode() if i == first_a else payload)
+                         for i, (kind, payload) in enumerate(records) if i > 0))
+    with pytest.raises(ReplayInputError, match="does not carry the TC packet"):
+        replay(tampered)
