@@ -278,7 +278,10 @@ def test_a_replay_without_keys_takes_the_recorded_authentication_outcomes(record
     tampered = tmp_path / "tampered.rec"
     first_a = next(i for i, (kind, _) in enumerate(records) if kind == b"A")
     outcomes = json.loads(records[first_a][1])
-    outcomes[0] = {"tc": bytes(20).hex()} if "tc" in outcomes[0] else outcomes[0]
+    assert "tc" in outcomes[0]  # the first check of the run passed its TC (the nominal trajectory upload)
+    tc = bytearray.fromhex(outcomes[0]["tc"])
+    tc[-1] ^= 0xFF  # a packet the recorded unit does not carry
+    outcomes[0] = {"tc": tc.hex()}
     with gzip.open(tampered, "wb") as f:
         f.write(_record(b"H", json.dumps(header).encode()))
         f.write(b"".join(_record(kind, json.dumps(outcomes).encode() if i == first_a else payload)
