@@ -41,6 +41,7 @@ def main() -> int:
             except Exception as exc:  # noqa: BLE001 - every failure is collected and printed
                 counts["FAILED"] += 1
                 failures.append(f"{texts[2]}: {type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}")
+                print("FAILED:", failures[-1], file=sys.stderr, flush=True)  # seen as it happens, not after hours
         n = sum(counts.values())
         if n % 500 == 0:
             print(f"{n} examples: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())), file=sys.stderr)

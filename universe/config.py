@@ -16,6 +16,9 @@ from contracts.model import Config
 
 Vec3 = tuple[float, float, float]
 
+# 100 times the default effort (0.01 s substeps): a finer substep only spends time, its error being below 1e-9 already
+MAX_SUBSTEPS_PER_S = 10_000.0
+
 
 class FlybyConfig(Config):
     """True flyby geometry: straight-line relative motion about the Didymos barycentre."""
@@ -158,6 +161,22 @@ class SpacecraftConfig(Config):
         if problem:
             raise ValueError(problem)
         return v
+
+    @model_validator(mode="after")
+    def _bounded_integration_effort(self) -> SpacecraftConfig:
+        # the substep follows the shorter of integration_substep_s and half the friction time constant: bound it
+        # here, or a mutated number makes one control period take hours instead of failing at load
+        w = self.wheels
+        friction_rate_s = (w.viscous_friction_nms + w.coulomb_friction_nm / w.coulomb_smoothing_rad_s) / w.inertia_kgm2
+        per_s = max(1.0 / self.integration_substep_s, 2.0 * friction_rate_s)
+        if per_s > MAX_SUBSTEPS_PER_S:
+            raise ValueError(
+                f"the attitude dynamics would take {per_s:.3g} RK4 substeps per simulated second (at most "
+                f"{MAX_SUBSTEPS_PER_S:.0f}): integration_substep_s must be >= {1 / MAX_SUBSTEPS_PER_S:g} s and "
+                "wheels (viscous_friction_nms + coulomb_friction_nm / coulomb_smoothing_rad_s) / inertia_kgm2 "
+                f"<= {MAX_SUBSTEPS_PER_S / 2:.0f} /s; got {self.integration_substep_s:g} s and {friction_rate_s:.3g} /s"
+            )
+        return self
 
 
 class StarTrackerConfig(Config):

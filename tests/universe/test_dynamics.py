@@ -271,3 +271,16 @@ def test_zero_dt_returns_same_state_and_bad_inputs_raise() -> None:
         dyn.step(AttitudeState(state.q, state.omega_rad_s, np.ones(4)), np.zeros(3), 0.1)
     with pytest.raises(DynamicsError, match="unit quaternion"):
         dyn.step(AttitudeState(np.array([0, 0, 0, 2.0]), state.omega_rad_s, np.ones(3)), np.zeros(3), 0.1)
+
+
+@pytest.mark.parametrize("overrides", [
+    {"integration_substep_s": 1e-7},
+    {"wheels": WheelConfig(coulomb_friction_nm=1.0, coulomb_smoothing_rad_s=1e-6)},
+])
+def test_an_integration_effort_of_hours_per_period_is_refused_at_load(overrides: dict) -> None:
+    """A substep or a friction stiffness needing over 10,000 RK4 substeps per simulated second is refused by name."""
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="integration_substep_s must be >= 0.0001 s"):
+        SpacecraftConfig(**overrides)
+    SpacecraftConfig(integration_substep_s=1e-4)  # the bound itself is allowed
