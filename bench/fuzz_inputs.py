@@ -22,6 +22,14 @@ from hypothesis import HealthCheck, given, settings  # noqa: E402
 from tests.scenario.mutations import mutated_texts, outcome  # noqa: E402
 
 
+class _Printed(list):
+    """A list of failures that prints each one as it comes: a long campaign shows them as they happen."""
+
+    def append(self, item: str) -> None:  # type: ignore[override]
+        super().append(item)
+        print("FAILED:", item, file=sys.stderr, flush=True)
+
+
 def main() -> int:
     """Run the fuzz campaign; exit 1 if any example failed."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -29,7 +37,7 @@ def main() -> int:
     p.add_argument("--steps", type=int, default=20, help="control periods each valid run goes through")
     args = p.parse_args()
     counts: Counter[str] = Counter()
-    failures: list[str] = []
+    failures: list[str] = _Printed()
 
     @settings(max_examples=args.examples, deadline=None, database=None, derandomize=True,
               suppress_health_check=list(HealthCheck))
@@ -41,7 +49,6 @@ def main() -> int:
             except Exception as exc:  # noqa: BLE001 - every failure is collected and printed
                 counts["FAILED"] += 1
                 failures.append(f"{texts[2]}: {type(exc).__name__}: {exc}\n{traceback.format_exc(limit=3)}")
-                print("FAILED:", failures[-1], file=sys.stderr, flush=True)  # seen as it happens, not after hours
         n = sum(counts.values())
         if n % 500 == 0:
             print(f"{n} examples: " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())), file=sys.stderr)

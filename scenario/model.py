@@ -10,9 +10,11 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from pydantic import Field, ValidationError, field_validator, model_validator
 
 from contracts.bus import BusConfig
+from contracts.cuc import MAX_OBT_S
 from contracts.errors import ScenarioError
 from contracts.model import Config
 from contracts.seeding import rng_streams
@@ -23,6 +25,7 @@ from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
 from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
 from universe.geometry import GeometryError, nominal_ca
+from universe.oscillator import ClockModelError, Oscillator, clock_jumps_s
 
 if TYPE_CHECKING:
     from timeline.model import Timeline
@@ -67,6 +70,28 @@ class Scenario(Config):
                     f"km is {low:.3f} km: the on-board grid would reach non-positive distances"]
         return []
 
+    def _obt_encodable(self) -> list[str]:
+        """The on-board time of the run's instants (start, end, the true C/A and ground's C/A) must fit the CUC
+        range of the packets that carry it, or a time-tagged packet cannot be built mid-run."""
+        u = self.universe
+        try:
+            clock = Oscillator(u.oscillator, np.random.default_rng(0), clock_jumps_s(u.faults))
+            instants = {"universe.start_s": u.start_s, "universe.end_s": u.end_s,
+                        "universe.flyby.ca_time_s": u.flyby.ca_time_s}
+            ca_s, _ = nominal_ca(u.flyby, u.uncertainty, rng_streams(self.seed)["nominal"])
+            instants["universe.uncertainty.ca_time_sigma_s"] = ca_s  # ground's C/A: truth plus its error
+            margin_s = u.oscillator.jitter_bound_sigma * u.oscillator.jitter_s
+            problems = []
+            for path, t in instants.items():
+                obt = clock.obt_mean_s(t)
+                if not margin_s <= obt <= MAX_OBT_S - margin_s:
+                    what = "ground's C/A" if path.startswith("universe.uncertainty") else "on-board time"
+                    problems.append(f"{path}: {what} OBT {obt:.6g} s at t = {t:.6g} s is outside the CUC range "
+                                    f"0..{MAX_OBT_S:.0f} s (universe.oscillator.initial_offset_s is OBT at the epoch)")
+            return problems
+        except (ClockModelError, GeometryError) as exc:
+            return [f"universe.oscillator: {exc}"]
+
     @field_validator("epoch_utc")
     @classmethod
     def _epoch_readable(cls, v: str) -> str:
@@ -80,6 +105,7 @@ class Scenario(Config):
     def _sections_agree(self) -> Scenario:
         problems = knowledge_problems(self, set(self.knowledge_errors))
         problems += self._grid_fits_the_belief()
+        problems += self._obt_encodable()
         u, upload = self.universe, self.ground.upload_nominal_at_s
         if upload is not None and not u.start_s - 1e-9 <= upload < u.end_s:
             problems.append(f"ground.upload_nominal_at_s: {upload:g} s is outside the run {u.start_s:g}..{u.end_s:g} s: "

@@ -39,6 +39,13 @@ REFUSED = [
     ({"universe": {"spacecraft": {"initial_rate_deg_s": [0, "1", 0]}}},
      "universe.spacecraft.initial_rate_deg_s[1]: must be a number, got '1' (str)"),
     ({"seed": True}, "seed: must be a whole number, got True (bool)"),
+    # found by bench/fuzz_inputs.py: OBT before zero at the start, and a C/A beyond the 32-bit CUC seconds
+    ({"universe": {"oscillator": {"initial_offset_s": -964.0}}},
+     "universe.start_s: on-board time OBT -1096 s at t = -132 s is outside the CUC range"),
+    ({"universe": {"flyby": {"ca_time_s": 1.2856254793347456e16}}},
+     "universe.flyby.ca_time_s: on-board time OBT 1.28563e+16 s"),
+    ({"universe": {"spacecraft": {"integration_substep_s": 1e-7}}},
+     "universe.spacecraft: the attitude dynamics would take 1e+07 RK4 substeps per simulated second"),
 ]
 
 
