@@ -1,0 +1,89 @@
+"""The campaign engine: runs on a Dask cluster, each result stored as it arrives.
+
+By default a ``dask.distributed.LocalCluster`` sized to the machine (one single-threaded worker process per core:
+a run is pure Python and NumPy, one core each); given a scheduler address, the same campaign goes to an existing
+cluster whose workers have the project installed. A bounded number of runs is in flight at once (two per worker),
+so a campaign killed or interrupted loses at most those: every finished run is already in the store.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+from distributed import Client, Future, LocalCluster, as_completed
+
+from flyby.montecarlo.campaign import Campaign, RunResult, failed_result, run_one
+from flyby.montecarlo.progress import Progress
+from flyby.montecarlo.store import ResultStore
+
+IN_FLIGHT_PER_WORKER = 2  # one running, one queued: a worker never waits for the next run
+
+
+@contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None, processes: bool = True
+                ) -> Iterator[Client]:
+    """A client of the cluster at ``scheduler`` (tcp://HOST:8786), or of a LocalCluster of ``workers``
+    single-threaded workers (default: one per core; ``processes=False`` keeps them in this process)."""
+    if scheduler is not None:
+        client = Client(scheduler)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=processes, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        yield client
+
+
+def worker_count(client: Client) -> int:
+    """Workers the scheduler knows now (at least 1, so a campaign waiting for workers still submits)."""
+    return max(1, len(client.scheduler_info(n_workers=-1).get("workers", {})))
+
+
+def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: ResultStore, progress: Progress,
+                 stop_after: int | None = None, on_result: Callable[[RunResult], None] | None = None) -> int:
+    """Run ``runs`` of ``campaign`` on the cluster, appending each result to ``store`` as it arrives; return how many
+    were stored. ``stop_after`` stops (cancelling the runs in flight) once that many were stored, as a kill would.
+
+    A run whose worker fails outside the run (killed, connection lost) is stored as a failure with the error.
+    """
+    payload = campaign.to_json()
+    shared = client.scatter(payload, broadcast=True, hash=False)  # once to each worker; own key per campaign call
+    todo = iter(runs)
+    pending = as_completed()
+    in_flight: dict[Future, int] = {}
+
+    def submit() -> None:
+        k = next(todo, None)
+        if k is not None:
+            fut = client.submit(run_one, shared, k, pure=False, key=f"flyby-run-{k}-{id(store):x}")
+            in_flight[fut] = k
+            pending.add(fut)
+
+    for _ in range(IN_FLIGHT_PER_WORKER * worker_count(client)):
+        submit()
+    stored = 0
+    try:
+        for fut in pending:
+            k = in_flight.pop(fut)
+            try:
+                result = fut.result()
+            except Exception as exc:  # noqa: BLE001 - a lost worker fails this run, never the campaign
+                result = failed_result(campaign, k, f"{type(exc).__name__}: {exc}")
+            store.append(result)
+            stored += 1
+            progress.update(result)
+            if on_result is not None:
+                on_result(result)
+            if stop_after is not None and stored >= stop_after:
+                break
+            submit()
+    finally:
+        for fut in in_flight:
+            fut.cancel()
+        progress.finish()
+    return stored
