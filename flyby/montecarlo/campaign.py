@@ -52,7 +52,7 @@ class Campaign:
 
 
 @lru_cache(maxsize=4)
-def _campaign(payload: str) -> Campaign:
+def campaign_of(payload: str) -> Campaign:
     """A worker parses a campaign once, however many of its runs it makes."""
     return Campaign.from_json(payload)
 
@@ -85,7 +85,7 @@ def run_one(payload: str, k: int) -> RunResult:
     """Run k of the campaign ``payload`` (``Campaign.to_json``); a failure is returned with its traceback."""
     clock = WallClock()  # contracts.clock is the one module reading the machine's time
     t0 = clock.now()
-    campaign = _campaign(payload)
+    campaign = campaign_of(payload)
     sc = campaign.scenario
     seed, _ = run_seeds(campaign.seed, k, 0)
     values: dict[str, float] = {}

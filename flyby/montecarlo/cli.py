@@ -162,6 +162,13 @@ def _run_in(store: ResultStore, campaign: Campaign, args: argparse.Namespace) ->
     return EXIT_OK if passed == len(rows) else EXIT_INTERNAL
 
 
+def cmd_fit(args: argparse.Namespace) -> int:
+    """``flyby mc-fit``: see ``flyby.montecarlo.centroidfit``."""
+    from flyby.montecarlo.centroidfit import cmd_fit as fit
+
+    return fit(args)
+
+
 def cmd_mc(args: argparse.Namespace) -> int:
     """Dispatch ``flyby mc`` to replay, report or campaign."""
     if args.replay is not None:
@@ -171,8 +178,17 @@ def cmd_mc(args: argparse.Namespace) -> int:
     return cmd_campaign(args)
 
 
+def add_cluster_arguments(p: argparse.ArgumentParser) -> None:
+    """Where the runs go: an existing scheduler, or a local cluster of processes (or threads)."""
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="an existing Dask scheduler (tcp://HOST:8786); default: a local cluster, one worker per core")
+    p.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
+    p.add_argument("--threads", action="store_true",
+                   help="local workers as threads of this process (small campaigns, debugging), not processes")
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    """Add ``flyby mc`` to the ``flyby`` command's sub-commands."""
+    """Add ``flyby mc`` and ``flyby mc-fit`` to the ``flyby`` command's sub-commands."""
     p = sub.add_parser("mc", help="Monte Carlo campaign of a scenario on Dask: runs, results store, statistics report",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenario", type=Path, nargs="?", help="scenario file (its dispersions: section)")
@@ -190,12 +206,18 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--goal", type=float, default=DEFAULT_GOAL,
                    help=f"fraction of runs that must meet each requirement, for the report's verdicts (default "
                    f"{DEFAULT_GOAL:g})")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="an existing Dask scheduler (tcp://HOST:8786); default: a local cluster, one worker per core")
-    p.add_argument("--workers", type=int, default=None, help="workers of the local cluster (default: one per core)")
-    p.add_argument("--threads", action="store_true",
-                   help="local workers as threads of this process (small campaigns, debugging), not processes")
+    add_cluster_arguments(p)
     p.add_argument("--resume", action="store_true", help="continue the campaign in --out, skipping stored runs")
     p.add_argument("--replay", type=int, default=None, metavar="K", help="run K of the campaign in --out again alone")
     p.add_argument("--report", action="store_true", help="only rewrite --out's mc.html")
     p.set_defaults(func=cmd_mc)
+    f = sub.add_parser("mc-fit", help="fit the centroid-level measurement model on image-level runs",
+                       description="Fit universe.centroid_model on image-level runs of a scenario (see "
+                       "flyby.montecarlo.centroidfit) and write it for flyby mc --centroid-model.")
+    f.add_argument("scenario", type=Path)
+    f.add_argument("--runs", type=int, default=40, help="image-level runs to fit on (default 40)")
+    f.add_argument("--out", type=Path, required=True, help="model file to write (YAML)")
+    f.add_argument("--seed", type=int, default=None, help="campaign seed (default: the scenario's seed)")
+    f.add_argument("--dispersions", type=Path, default=None, metavar="FILE", help="dispersions to add (YAML)")
+    add_cluster_arguments(f)
+    f.set_defaults(func=cmd_fit)

@@ -76,7 +76,7 @@ def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: Res
                 result = failed_result(campaign, k, f"{type(exc).__name__}: {exc}")
             store.append(result)
             stored += 1
-            progress.update(result)
+            progress.update(result.ok, result.passed)
             if on_result is not None:
                 on_result(result)
             if stop_after is not None and stored >= stop_after:

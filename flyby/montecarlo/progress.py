@@ -6,7 +6,6 @@ import sys
 from typing import TextIO
 
 from contracts.clock import Clock, WallClock
-from flyby.montecarlo.campaign import RunResult
 
 BAR_WIDTH = 30
 
@@ -53,12 +52,13 @@ class Progress:
         return (f"[{'#' * filled}{'.' * (BAR_WIDTH - filled)}] {n}/{self.total} runs, {self.failed} missed a "
                 f"requirement, {self.errors} raised, {speed}, ETA {eta_text(left)}")
 
-    def update(self, result: RunResult) -> None:
-        """Count a finished run and redraw (on a terminal; elsewhere a line every 5 %)."""
+    def update(self, ok: bool, passed: bool = True) -> None:
+        """Count a finished run (``ok``: it did not raise; ``passed``: it met every requirement) and redraw (on a
+        terminal; elsewhere a line every 5 %)."""
         self.done += 1
-        if not result.ok:
+        if not ok:
             self.errors += 1
-        elif not result.passed:
+        elif not passed:
             self.failed += 1
         if self._tty:
             print("\r" + self.line(), end="", file=self.stream, flush=True)

@@ -102,9 +102,9 @@ def test_progress_line_counts_and_estimates() -> None:
     out = io.StringIO()
     p = Progress(4, stream=out, clock=clock)
     clock.advance(5.0)
-    p.update(_result(0))
+    p.update(ok=True, passed=True)
     clock.advance(5.0)
-    p.update(RunResult(run=1, seed=1, status="error", error="boom", wall_s=0.0, sim_s=0.0))
+    p.update(ok=False)
     assert p.line() == f"[{'#' * 15}{'.' * 15}] 2/4 runs, 0 missed a requirement, 1 raised, 0.20 run/s, ETA 10 s"
 
 

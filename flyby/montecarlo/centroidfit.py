@@ -1,0 +1,233 @@
+"""``flyby mc-fit``: fit the centroid-level measurement model (``universe.centroid_model``) on image-level runs.
+
+Each image-level run gives, per camera frame, the truth (the pinhole projections of both bodies' centres, the
+attitude, ranges, phase angle) and what the on-board imaging chain reported (the NavigationReport's binned
+centroids, taken back to full resolution). Over all frames of all runs:
+
+- a reported Dimorphos farther from its truth than the report's centroid tolerance is a misidentification; its
+  rate is over the frames that report Dimorphos;
+- ``merge_gap_px`` is the gap between the two discs that best separates frames reporting Dimorphos from frames that
+  do not (fewest frames on the wrong side);
+- per 10 deg bin of phase angle, over the frames with Dimorphos in the image and apart from Didymos: the dropout
+  rate, and the least-squares centroid shift towards the Sun's side per apparent radius;
+- the noise left after that bias, per axis, as a + b x radius (non-negative least squares over radius bins);
+- Didymos's dropout rate over the frames with Didymos in the image.
+
+The model file written (``universe: centroid_model: ...``) is what ``flyby mc --centroid-model FILE`` takes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import NDArray
+from scipy.optimize import nnls
+
+from analysis.telemetry import decoded_telemetry
+from contracts import pus
+from contracts.errors import ScenarioError
+from contracts.exitcodes import EXIT_CONFIG, EXIT_OK
+from contracts.messages import TruthRecord
+from flyby.inprocess import run_in_process
+from flyby.montecarlo.campaign import build_campaign, campaign_of
+from scenario.dispersions import dispersed_run
+from scenario.model import Scenario
+from universe.camera import Body, Scene
+from universe.config import CentroidModelConfig
+from universe.measurement import body_view
+
+PHASE_BIN_DEG = 10.0
+MIN_BIN_FRAMES = 30  # a phase bin enters the tables with at least this many frames
+MIN_BIAS_FRAMES = 10  # and its bias with at least this many well-identified detections (else interpolated)
+RADIUS_BINS = 10
+
+
+@dataclass
+class FrameSamples:
+    """Per camera frame of image-level runs: truth and report, full-resolution px (NaN where absent)."""
+
+    true_dim: NDArray[np.float64]  # (N, 2)
+    true_did: NDArray[np.float64]
+    reported_dim: NDArray[np.float64]
+    reported_did: NDArray[np.float64]
+    radius_dim: NDArray[np.float64]
+    radius_did: NDArray[np.float64]
+    phase_dim_deg: NDArray[np.float64]
+    towards_sun_dim: NDArray[np.float64]  # (N, 2) unit image direction
+    side_px: int
+
+    @classmethod
+    def concat(cls, parts: list[FrameSamples]) -> FrameSamples:
+        """All frames of several runs."""
+        return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in (
+            "true_dim", "true_did", "reported_dim", "reported_did", "radius_dim", "radius_did", "phase_dim_deg",
+            "towards_sun_dim")), side_px=parts[0].side_px)
+
+    def inside(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Whether positions fall in the frame (as the measurement model decides it)."""
+        return np.all(np.isfinite(xy) & (xy >= -0.5) & (xy <= self.side_px - 0.5), axis=1)
+
+
+def full_resolution(xy: tuple[float, float] | None, factor: float) -> tuple[float, float]:
+    """A binned position back at full resolution: the inverse of ``analysis.scoring.binned_px``."""
+    if xy is None:
+        return (np.nan, np.nan)
+    return (factor * xy[0] + (factor - 1) / 2, factor * xy[1] + (factor - 1) / 2)
+
+
+def frame_samples(scenario: Scenario, truth: list[TruthRecord], navigation: list[tuple[float, pus.NavigationReport]]
+                  ) -> FrameSamples:
+    """The samples of one image-level run: every frame the truth records, with the report of it if any."""
+    u = scenario.universe
+    factor = u.camera.resolution_px / scenario.obsw.imaging.binned_size_px
+    reports = {nav.frame_id: nav for _, nav in navigation}
+    cols: dict[str, list[Any]] = {k: [] for k in ("td", "ti", "rd", "ri", "rad_d", "rad_i", "ph", "sun")}
+    for r in truth:
+        if r.frame_id is None or r.los_dimorphos_inertial is None or r.los_didymos_inertial is None \
+                or r.range_didymos_m is None:
+            continue
+        did = Body(centre_inertial_m=np.asarray(r.los_didymos_inertial) * r.range_didymos_m,
+                   radius_m=u.bodies.didymos_diameter_m / 2)
+        dim = Body(centre_inertial_m=np.asarray(r.los_dimorphos_inertial) * r.range_m,
+                   radius_m=u.bodies.dimorphos_diameter_m / 2)
+        scene = Scene(camera_position_m=np.zeros(3), q_body_to_inertial=np.asarray(r.q), body_rate_rad_s=np.zeros(3),
+                      exposure_s=u.camera.exposure_s, bodies=(did, dim), sun_direction=np.asarray(u.bodies.sun_direction))
+        p_did, r_did, _, _ = body_view(scene, u.camera, 0)
+        p_dim, r_dim, ph, sun = body_view(scene, u.camera, 1)
+        nav = reports.get(r.frame_id)
+        cols["td"].append(p_dim)
+        cols["ti"].append(p_did)
+        cols["rd"].append(full_resolution(None if nav is None else nav.dimorphos_col_row, factor))
+        cols["ri"].append(full_resolution(None if nav is None else nav.didymos_col_row, factor))
+        cols["rad_d"].append(r_dim)
+        cols["rad_i"].append(r_did)
+        cols["ph"].append(ph)
+        cols["sun"].append(sun)
+    arr = {k: np.asarray(v, dtype=float).reshape(len(v), 2 if k in ("td", "ti", "rd", "ri", "sun") else 1)
+           for k, v in cols.items()}
+    return FrameSamples(arr["td"], arr["ti"], arr["rd"], arr["ri"], arr["rad_d"][:, 0], arr["rad_i"][:, 0],
+                        arr["ph"][:, 0], arr["sun"], u.camera.resolution_px)
+
+
+def fit_run(payload: str, k: int) -> FrameSamples:
+    """Run k of an image-level campaign and return its frame samples (a Dask task)."""
+    campaign = campaign_of(payload)
+    run = dispersed_run(campaign.scenario, campaign.seed, k)
+    out = run_in_process(run.scenario, campaign.timeline)
+    tm = decoded_telemetry([p.raw for p in out.received], f"run {k}")
+    return frame_samples(run.scenario, out.truth, tm.navigation)
+
+
+def _table(phase: NDArray[np.float64], values: NDArray[np.float64], ok: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Values at the table's phases: where not ``ok``, interpolated from those that are (constant beyond)."""
+    if not ok.any():
+        return np.zeros_like(values)
+    return np.where(ok, values, np.interp(phase, phase[ok], values[ok]))
+
+
+def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig, list[str]]:
+    """The measurement model fitted on the samples, and lines saying what it was fitted on. ``tolerance_px``: the
+    centroid error beyond which a detection is a misidentification, full-resolution px."""
+    vis = s.inside(s.true_dim)
+    rep = vis & np.all(np.isfinite(s.reported_dim), axis=1)
+    err = s.reported_dim - s.true_dim
+    dist = np.hypot(err[:, 0], err[:, 1])
+    misid = rep & (dist > tolerance_px)
+    good = rep & ~misid
+    gap = np.hypot(*(s.true_dim - s.true_did).T) - s.radius_dim - s.radius_did
+    candidates = np.linspace(-100.0, 100.0, 401)
+    wrong = [int(np.sum(vis & (gap < g) & rep) + np.sum(vis & (gap >= g) & ~rep)) for g in candidates]
+    merge_gap = float(candidates[int(np.argmin(wrong))])
+    apart = vis & (gap >= merge_gap)
+    edges = np.arange(0.0, 180.0 + PHASE_BIN_DEG, PHASE_BIN_DEG)
+    idx = np.clip(np.digitize(s.phase_dim_deg, edges) - 1, 0, edges.size - 2)
+    phases, dropout, bias, bias_ok = [], [], [], []
+    along = np.sum(err * s.towards_sun_dim, axis=1)
+    for b in range(edges.size - 1):
+        in_bin = apart & (idx == b)
+        if in_bin.sum() < MIN_BIN_FRAMES:
+            continue
+        phases.append(float(np.mean(s.phase_dim_deg[in_bin])))
+        dropout.append(float(np.mean(~rep[in_bin])))
+        g = good & (idx == b)
+        bias_ok.append(g.sum() >= MIN_BIAS_FRAMES)
+        r = s.radius_dim[g]
+        bias.append(float(np.sum(along[g] * r) / np.sum(r * r)) if bias_ok[-1] else 0.0)
+    if not phases:
+        raise ValueError(f"no phase bin has {MIN_BIN_FRAMES} frames with Dimorphos in view: run more runs")
+    ph = np.asarray(phases)
+    bias_table = _table(ph, np.asarray(bias), np.asarray(bias_ok))
+    shift = np.interp(s.phase_dim_deg, ph, bias_table)[:, None] * s.radius_dim[:, None] * s.towards_sun_dim
+    res = (err - shift)[good]
+    r_good = s.radius_dim[good]
+    qs = np.unique(np.quantile(r_good, np.linspace(0, 1, RADIUS_BINS + 1)))
+    ridx = np.clip(np.digitize(r_good, qs) - 1, 0, max(qs.size - 2, 0))
+    rows, sig = [], []
+    for b in range(max(qs.size - 1, 1)):
+        m = ridx == b
+        if m.sum() >= MIN_BIAS_FRAMES:
+            rows.append((1.0, float(np.mean(r_good[m]))))
+            sig.append(float(np.sqrt(np.mean(res[m] ** 2))))  # per axis: mean over both axes' squares
+    (a, slope), _ = nnls(np.asarray(rows), np.asarray(sig))
+    did_vis = s.inside(s.true_did)
+    did_drop = float(np.mean(~np.all(np.isfinite(s.reported_did[did_vis]), axis=1))) if did_vis.any() else 0.0
+    model = CentroidModelConfig(
+        phase_deg=tuple(round(p, 3) for p in ph), bias_radius_fraction=tuple(round(float(b), 4) for b in bias_table),
+        dimorphos_dropout=tuple(round(d, 4) for d in dropout), noise_px=round(float(a), 4),
+        noise_radius_fraction=round(float(slope), 4), merge_gap_px=round(merge_gap, 2),
+        didymos_dropout=round(did_drop, 4),
+        misidentification=round(float(misid.sum() / max(rep.sum(), 1)), 5))
+    lines = [f"{vis.size} frames, {int(vis.sum())} with Dimorphos in the image, {int(rep.sum())} reporting it, "
+             f"{int(misid.sum())} misidentified (> {tolerance_px:g} px), {int(did_vis.sum())} with Didymos in it",
+             f"merge gap {merge_gap:g} px: {min(wrong)} frames on the wrong side of it",
+             f"noise fitted over {len(sig)} radius bins: {a:.3f} px + {slope:.3f} x radius"]
+    return model, lines
+
+
+def model_yaml(model: CentroidModelConfig, header: list[str]) -> str:
+    """The model file: ``universe: centroid_model: ...`` under a comment saying how it was fitted."""
+    data = {"universe": {"centroid_model": model.model_dump(mode="json")}}
+    return "".join(f"# {line}\n" for line in header) + yaml.safe_dump(data, sort_keys=False, default_flow_style=None)
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    """Run image-level runs on Dask, fit the model, write it."""
+    from distributed import as_completed
+
+    from flyby.montecarlo.engine import dask_client
+    from flyby.montecarlo.progress import Progress
+
+    try:
+        campaign = build_campaign(args.scenario, seed=args.seed, fidelity="image", dispersions=args.dispersions)
+    except ScenarioError as err:
+        print(f"{err.source}: invalid campaign", file=sys.stderr)
+        for line in err.problems:
+            print(f"  {line}", file=sys.stderr)
+        return EXIT_CONFIG
+    payload = campaign.to_json()
+    parts: list[FrameSamples] = []
+    progress = Progress(args.runs)
+    with dask_client(args.scheduler, args.workers, processes=not args.threads) as client:
+        shared = client.scatter(payload, broadcast=True, hash=False)
+        for fut in as_completed([client.submit(fit_run, shared, k, pure=False) for k in range(args.runs)]):
+            parts.append(fut.result())
+            progress.update(ok=True)
+    progress.finish()
+    sc = campaign.scenario
+    factor = sc.universe.camera.resolution_px / sc.obsw.imaging.binned_size_px
+    model, lines = fit_model(FrameSamples.concat(parts), sc.ground.report.centroid_tolerance_px * factor)
+    header = [f"Centroid-level measurement model fitted by flyby mc-fit on {args.runs} image-level runs of "
+              f"{args.scenario} (campaign seed {campaign.seed}" + (f", dispersions {args.dispersions}"
+                                                                   if args.dispersions else "") + ")", *lines,
+              "Positions in full-resolution px; flyby mc --fidelity centroid --centroid-model FILE uses it."]
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(model_yaml(model, header), encoding="utf-8")
+    print("\n".join(header))
+    print(f"model: {args.out}")
+    return EXIT_OK
