@@ -399,29 +399,35 @@ class CentroidModelConfig(Config):
     Sun's side of the image by a fraction of its apparent radius that depends on the phase angle, plus Gaussian
     noise. Dimorphos is not reported when the gap between its disc and Didymos's is below ``merge_gap_px`` (the
     chain cannot tell them apart), nor in a dropout; a misidentified Dimorphos is reported where the chain puts
-    Didymos. Positions in full-resolution camera px. Defaults: fitted by ``flyby mc-fit`` on image-level runs of
-    the nominal scenario (README, "Centroid-level fidelity").
+    Didymos. Positions in full-resolution camera px.
+
+    Defaults: fitted by ``flyby mc-fit configs/scenarios/nominal.yaml --runs 40 --seed 1000 --dispersions
+    configs/dispersions/flyby.yaml`` (17,818 frames of 40 image-level runs; README, "Centroid-level fidelity").
     """
 
     phase_deg: tuple[float, ...] = Field(
-        (0.0,), min_length=1,
+        (5.114, 15.255, 25.756, 36.139, 41.891, 66.498, 75.635, 85.207, 95.263, 105.494, 115.823, 125.93, 130.583),
+        min_length=1,
         description="phase angles of the bias and dropout tables, deg, increasing (linear between, constant beyond)")
     bias_radius_fraction: tuple[float, ...] = Field(
-        (0.0,), min_length=1,
+        (0.0186, 0.072, 0.1313, 0.2115, 0.0348, 0.5365, 0.6138, 0.6421, 0.6817, 0.6913, 0.7071, 0.7628, 0.7628),
+        min_length=1,
         description="centroid shift towards the Sun's side of the image at each phase_deg, fraction of the apparent "
         "radius")
     dimorphos_dropout: tuple[float, ...] = Field(
-        (0.0,), min_length=1,
+        (0.0067, 0.031, 0.005, 0.0, 0.142, 0.1935, 0.0859, 0.0111, 0.0189, 0.0023, 0.0112, 0.7875, 1.0),
+        min_length=1,
         description="probability that a visible Dimorphos apart from Didymos is not reported, at each phase_deg")
-    noise_px: float = Field(0.0, ge=0, description="one-sigma centroid noise per axis, full-resolution px")
+    noise_px: float = Field(1.4315, ge=0, description="one-sigma centroid noise per axis, full-resolution px")
     noise_radius_fraction: float = Field(
-        0.0, ge=0, description="one-sigma centroid noise per axis growing with the body, fraction of its apparent radius")
+        0.0726, ge=0,
+        description="one-sigma centroid noise per axis growing with the body, fraction of its apparent radius")
     merge_gap_px: float = Field(
-        0.0, description="Dimorphos is not reported when the gap between its disc and Didymos's is below this, "
+        10.0, description="Dimorphos is not reported when the gap between its disc and Didymos's is below this, "
         "full-resolution px")
-    didymos_dropout: float = Field(0.0, ge=0, le=1, description="probability that a visible Didymos is not reported")
+    didymos_dropout: float = Field(0.1171, ge=0, le=1, description="probability that a visible Didymos is not reported")
     misidentification: float = Field(
-        0.0, ge=0, le=1, description="probability that a reported Dimorphos is placed where Didymos is reported")
+        0.01074, ge=0, le=1, description="probability that a reported Dimorphos is placed where Didymos is reported")
 
     @model_validator(mode="after")
     def _tables(self) -> CentroidModelConfig:

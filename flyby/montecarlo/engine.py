@@ -34,7 +34,9 @@ def dask_client(scheduler: str | None = None, workers: int | None = None, proces
             client.close()
         return
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=processes, dashboard_address=None) as cluster, \
+    # the diagnostics page on a free port of this host only: campaigns started side by side never collide
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                      dashboard_address="127.0.0.1:0") as cluster, \
             Client(cluster) as client:
         yield client
 

@@ -84,7 +84,8 @@ def distribution_section(t: CampaignTables, f: Figure) -> Section:
     ax_h.set_xlabel(f"{f.label}, {f.unit}")
     ax_h.set_ylabel("runs")
     xs, cdf = ecdf(finite)
-    ax_c.step(xs, cdf, where="post", color=PASS_COLOUR)
+    ax_c.step(np.r_[xs[0], xs], np.r_[0.0, cdf], where="post", color=PASS_COLOUR)
+    ax_c.set_ylim(0.0, 1.02)
     ax_c.set_xlabel(f"{f.label}, {f.unit}")
     ax_c.set_ylabel("fraction of runs at or below")
     limit = _limit(t, f)
@@ -140,6 +141,9 @@ def worst_runs(t: CampaignTables) -> list[tuple[int, str]]:
         if f.passes is None:
             continue
         x = t.column(f.name)
+        finite = x[np.isfinite(x)]
+        if finite.size == 0 or finite.min() == finite.max():
+            continue  # every run alike: none is worst
         order = np.argsort(x if f.passes == "above" else -x)  # NaN last either way
         for i in [i for i in order if np.isfinite(x[i])][:WORST_PER_FIGURE]:
             out.setdefault(int(t.runs[i]), []).append(f"{f.label} {x[i]:.4g} {f.unit}")
@@ -203,7 +207,7 @@ def write_report(folder: Path, store: ResultStore, campaign: Campaign, goal: flo
         for name, v in t.values.items():
             f = v[np.isfinite(v)]
             if f.size:
-                vrows.append((name, f"{f.min():.4g}", f"{np.median(f):.4g}", f"{f.max():.4g}"))
+                vrows.append((name, f"{f.min():.8g}", f"{np.median(f):.8g}", f"{f.max():.8g}"))
         top += ["<h2>Dispersed values</h2>", html_table(("column", "min", "median", "max"), vrows, "dispersed")]
     sections = []
     for f in FIGURES:
