@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -49,22 +48,32 @@ def _differences(a: Campaign, b: Campaign) -> list[str]:
     return out
 
 
-def cmd_replay(args: argparse.Namespace) -> int:
-    """Run K of the stored campaign again in this process; compare its figures with the stored row."""
-    from flyby.montecarlo.campaign import SCENARIOS_DIR, run_one, write_run_scenario
-    from flyby.montecarlo.figures import FIGURES
+def _existing(out: Path) -> tuple[Campaign, list[dict], dict[int, dict[str, float]]] | None:
+    """The campaign stored in ``out``, its rows and drawn values; None (with a message) if there is none."""
     from flyby.montecarlo.store import open_store
 
-    with open_store(args.out) as store:
-        campaign = _stored_campaign(store)
-        if campaign is None:
-            _err(f"{args.out}: no campaign stored there (no {STORE_NAME})")
-            return EXIT_CONFIG
-        stored = {r["run"]: r for r in store.rows()}.get(args.replay)
-    payload = campaign.to_json()
+    if (out / STORE_NAME).is_file():
+        with open_store(out) as store:
+            campaign = _stored_campaign(store)
+            if campaign is not None:
+                return campaign, store.rows(), store.values()
+    _err(f"{out}: no campaign stored there (no {STORE_NAME} with a campaign)")
+    return None
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """Run K of the stored campaign again in this process; compare its figures and values with the stored ones."""
+    from flyby.montecarlo.campaign import SCENARIOS_DIR, run_one, write_run_scenario
+    from flyby.montecarlo.figures import FIGURES
+
+    found = _existing(args.out)
+    if found is None:
+        return EXIT_CONFIG
+    campaign, rows, values = found
+    stored = {r["run"]: r for r in rows}.get(args.replay)
     path = write_run_scenario(campaign, args.replay, args.out / SCENARIOS_DIR)
     print(f"run {args.replay}: scenario file {path} (flyby run {path} replays it over Zenoh)")
-    result = run_one(payload, args.replay)
+    result = run_one(campaign.to_json(), args.replay)
     if not result.ok:
         print(result.error, file=sys.stderr)
     for f in FIGURES:
@@ -73,8 +82,9 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if stored is None:
         print(f"run {args.replay} is not in the store: nothing to compare")
         return EXIT_OK
-    same = stored["status"] == result.status and stored["seed"] == result.seed and all(
-        stored.get(k) == v or (isinstance(v, float) and math.isnan(v)) for k, v in result.figures.items())
+    same = (stored["status"] == result.status and stored["seed"] == result.seed
+            and all(stored.get(k) == v for k, v in result.figures.items())
+            and values.get(args.replay, {}) == result.values)
     print(f"run {args.replay}: the replay {'gives' if same else 'DIFFERS from'} the stored figures")
     return EXIT_OK if same else EXIT_INTERNAL
 
@@ -84,12 +94,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     from flyby.montecarlo.report import write_report
     from flyby.montecarlo.store import open_store
 
+    found = _existing(args.out)
+    if found is None:
+        return EXIT_CONFIG
     with open_store(args.out) as store:
-        campaign = _stored_campaign(store)
-        if campaign is None:
-            _err(f"{args.out}: no campaign stored there (no {STORE_NAME})")
-            return EXIT_CONFIG
-        page = write_report(args.out, store, campaign, args.goal, str(args.out))
+        page = write_report(args.out, store, found[0], args.goal, str(args.out))
     print(f"report: {page}")
     return EXIT_OK
 

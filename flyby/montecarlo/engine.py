@@ -59,15 +59,17 @@ def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: Res
     pending = as_completed()
     in_flight: dict[Future, int] = {}
 
-    def submit() -> None:
-        k = next(todo, None)
-        if k is not None:
+    def top_up() -> None:
+        """Keep two runs per worker in flight (workers may join a remote cluster during the campaign)."""
+        while len(in_flight) < IN_FLIGHT_PER_WORKER * worker_count(client):
+            k = next(todo, None)
+            if k is None:
+                return
             fut = client.submit(run_one, shared, k, pure=False, key=f"flyby-run-{k}-{id(store):x}")
             in_flight[fut] = k
             pending.add(fut)
 
-    for _ in range(IN_FLIGHT_PER_WORKER * worker_count(client)):
-        submit()
+    top_up()
     stored = 0
     try:
         for fut in pending:
@@ -83,7 +85,7 @@ def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: Res
                 on_result(result)
             if stop_after is not None and stored >= stop_after:
                 break
-            submit()
+            top_up()
     finally:
         for fut in in_flight:
             fut.cancel()
