@@ -397,9 +397,9 @@ class CentroidModelConfig(Config):
 
     Per body whose centre projects into the frame: the true pinhole projection of its centre, shifted towards the
     Sun's side of the image by a fraction of its apparent radius that depends on the phase angle, plus Gaussian
-    noise. Dimorphos is not reported when the gap between its disc and Didymos's is below ``merge_gap_px`` (the
-    chain cannot tell them apart), nor in a dropout; a misidentified Dimorphos is reported where the chain puts
-    Didymos. Positions in full-resolution camera px.
+    noise. Dimorphos is not reported when the chain cannot tell it from Didymos (a probability that depends on the
+    gap between their discs), nor in a dropout (a probability that depends on the phase angle); a misidentified
+    Dimorphos is reported where the chain puts Didymos. Positions in full-resolution camera px.
 
     Defaults: fitted by ``flyby mc-fit configs/scenarios/nominal.yaml --runs 40 --seed 1000 --dispersions
     configs/dispersions/flyby.yaml`` (17,818 frames of 40 image-level runs; README, "Centroid-level fidelity").
@@ -422,9 +422,13 @@ class CentroidModelConfig(Config):
     noise_radius_fraction: float = Field(
         0.0726, ge=0,
         description="one-sigma centroid noise per axis growing with the body, fraction of its apparent radius")
-    merge_gap_px: float = Field(
-        10.0, description="Dimorphos is not reported when the gap between its disc and Didymos's is below this, "
-        "full-resolution px")
+    merge_gap_px: tuple[float, ...] = Field(
+        (-10.0, 10.0), min_length=1,
+        description="gaps between Dimorphos's disc and Didymos's of the merge table, full-resolution px, increasing")
+    merge_probability: tuple[float, ...] = Field(
+        (1.0, 0.0), min_length=1,
+        description="probability that Dimorphos is not told from Didymos at each merge_gap_px (linear between, "
+        "constant beyond)")
     didymos_dropout: float = Field(0.1171, ge=0, le=1, description="probability that a visible Didymos is not reported")
     misidentification: float = Field(
         0.01074, ge=0, le=1, description="probability that a reported Dimorphos is placed where Didymos is reported")
@@ -435,10 +439,16 @@ class CentroidModelConfig(Config):
         for name in ("bias_radius_fraction", "dimorphos_dropout"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"{name}: {len(getattr(self, name))} values for {n} phase_deg")
-        if any(b <= a for a, b in zip(self.phase_deg, self.phase_deg[1:])):
-            raise ValueError("phase_deg: must increase")
-        if any(not 0 <= p <= 1 for p in self.dimorphos_dropout):
-            raise ValueError("dimorphos_dropout: probabilities must be within 0..1")
+        if len(self.merge_probability) != len(self.merge_gap_px):
+            raise ValueError(f"merge_probability: {len(self.merge_probability)} values for {len(self.merge_gap_px)} "
+                             "merge_gap_px")
+        for name in ("phase_deg", "merge_gap_px"):
+            v = getattr(self, name)
+            if any(b <= a for a, b in zip(v, v[1:])):
+                raise ValueError(f"{name}: must increase")
+        for name in ("dimorphos_dropout", "merge_probability"):
+            if any(not 0 <= p <= 1 for p in getattr(self, name)):
+                raise ValueError(f"{name}: probabilities must be within 0..1")
         return self
 
 

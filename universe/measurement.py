@@ -35,6 +35,11 @@ def dimorphos_dropout(model: CentroidModelConfig, phase_deg: float) -> float:
     return float(np.interp(phase_deg, model.phase_deg, model.dimorphos_dropout))
 
 
+def merge_probability(model: CentroidModelConfig, gap_px: float) -> float:
+    """The probability that Dimorphos is not told from Didymos with this gap between their discs (full-res px)."""
+    return float(np.interp(gap_px, model.merge_gap_px, model.merge_probability))
+
+
 def body_view(scene: Scene, camera: CameraConfig, index: int) -> tuple[np.ndarray, float, float, np.ndarray]:
     """Of body ``index`` in the frame: true pinhole (col, row) of its centre (NaN behind the camera), apparent
     radius (full-resolution px), phase angle (deg) and the unit image direction (col, row) towards the Sun's side."""
@@ -79,7 +84,8 @@ def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidMode
     if dimorphos is not None:
         (did_px, did_r, _, _), (dim_px, dim_r, dim_phase, _) = views
         gap = float(np.hypot(*(dim_px - did_px))) - did_r - dim_r if np.all(np.isfinite(did_px)) else math.inf
-        if gap < model.merge_gap_px or u[1] < dimorphos_dropout(model, dim_phase):
+        seen_p = (1.0 - merge_probability(model, gap)) * (1.0 - dimorphos_dropout(model, dim_phase))
+        if u[1] >= seen_p:
             dimorphos = None
         elif didymos is not None and u[2] < model.misidentification:
             dimorphos = didymos

@@ -6,10 +6,10 @@ centroids, taken back to full resolution). Over all frames of all runs:
 
 - a reported Dimorphos farther from its truth than the report's centroid tolerance is a misidentification; its
   rate is over the frames that report Dimorphos;
-- ``merge_gap_px`` is the gap between the two discs that best separates frames reporting Dimorphos from frames that
-  do not (fewest frames on the wrong side);
-- per 10 deg bin of phase angle, over the frames with Dimorphos in the image and apart from Didymos: the dropout
-  rate, and the least-squares centroid shift towards the Sun's side per apparent radius;
+- a frame with Dimorphos in the image reports it with probability (1 - merge) x (1 - dropout), merge depending
+  on the gap between the two discs (4 px bins) and dropout on the phase angle (10 deg bins): both tables are
+  estimated alternately, each bin's seen fraction divided by what the other table expects;
+- per phase bin, the least-squares centroid shift towards the Sun's side per apparent radius;
 - the noise left after that bias, per axis, as a + b x radius (non-negative least squares over radius bins);
 - Didymos's dropout rate over the frames with Didymos in the image.
 
@@ -43,6 +43,10 @@ from universe.config import CentroidModelConfig
 from universe.measurement import body_view
 
 PHASE_BIN_DEG = 10.0
+GAP_BIN_PX = 4.0  # full-resolution px
+GAP_RANGE_PX = (-40.0, 80.0)  # gaps beyond fall in the end bins
+ALTERNATIONS = 10  # alternating estimates of the merge and dropout tables (they settle in a few)
+NEVER_MERGED_PX = 40.0  # discs this far apart are always told apart (the chain's blobs are a few px wide)
 MIN_BIN_FRAMES = 30  # a phase bin enters the tables with at least this many frames
 MIN_BIAS_FRAMES = 10  # and its bias with at least this many well-identified detections (else interpolated)
 RADIUS_BINS = 10
@@ -131,36 +135,65 @@ def _table(phase: NDArray[np.float64], values: NDArray[np.float64], ok: NDArray[
     return np.where(ok, values, np.interp(phase, phase[ok], values[ok]))
 
 
+def _bins(x: NDArray[np.float64], edges: NDArray[np.float64]) -> NDArray[np.int64]:
+    """The bin of each value (values beyond the edges in the end bins)."""
+    return np.clip(np.digitize(x, edges) - 1, 0, edges.size - 2)
+
+
+def _not_seen_tables(rep: NDArray[np.bool_], gap_bin: NDArray[np.int64], phase_bin: NDArray[np.int64],
+                     n_gap: int, n_phase: int, far_from: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Merge probability per gap bin and dropout per phase bin such that a frame is seen with probability
+    (1 - merge)(1 - dropout): alternating estimates, each bin's (1 - p) = frames seen / frames expected seen, then
+    scaled so that gap bins from ``far_from`` on never merge."""
+    merge, drop = np.zeros(n_gap), np.zeros(n_phase)
+    for _ in range(ALTERNATIONS):
+        for b in range(n_gap):
+            m = gap_bin == b
+            expected = np.sum(1.0 - drop[phase_bin[m]])
+            merge[b] = 1.0 - min(1.0, rep[m].sum() / expected) if expected > 0 else 0.0
+        for b in range(n_phase):
+            m = phase_bin == b
+            expected = np.sum(1.0 - merge[gap_bin[m]])
+            drop[b] = 1.0 - min(1.0, rep[m].sum() / expected) if expected > 0 else 0.0
+    # only the product is fixed by the data: discs far apart never merge, so their loss is all dropout
+    far = np.arange(n_gap) >= far_from
+    weights = np.bincount(gap_bin, minlength=n_gap)[far]
+    keep = float(np.average(1.0 - merge[far], weights=weights)) if weights.sum() else 1.0
+    if keep > 0:
+        merge = 1.0 - np.minimum(1.0, (1.0 - merge) / keep)
+        drop = 1.0 - (1.0 - drop) * keep
+    return merge, drop
+
+
 def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig, list[str]]:
     """The measurement model fitted on the samples, and lines saying what it was fitted on. ``tolerance_px``: the
     centroid error beyond which a detection is a misidentification, full-resolution px."""
     vis = s.inside(s.true_dim)
     rep = vis & np.all(np.isfinite(s.reported_dim), axis=1)
     err = s.reported_dim - s.true_dim
-    dist = np.hypot(err[:, 0], err[:, 1])
-    misid = rep & (dist > tolerance_px)
+    misid = rep & (np.hypot(err[:, 0], err[:, 1]) > tolerance_px)
     good = rep & ~misid
     gap = np.hypot(*(s.true_dim - s.true_did).T) - s.radius_dim - s.radius_did
-    candidates = np.linspace(-100.0, 100.0, 401)
-    wrong = [int(np.sum(vis & (gap < g) & rep) + np.sum(vis & (gap >= g) & ~rep)) for g in candidates]
-    merge_gap = float(candidates[int(np.argmin(wrong))])
-    apart = vis & (gap >= merge_gap)
-    edges = np.arange(0.0, 180.0 + PHASE_BIN_DEG, PHASE_BIN_DEG)
-    idx = np.clip(np.digitize(s.phase_dim_deg, edges) - 1, 0, edges.size - 2)
+    phase_edges = np.arange(0.0, 180.0 + PHASE_BIN_DEG, PHASE_BIN_DEG)
+    gap_edges = np.arange(GAP_RANGE_PX[0], GAP_RANGE_PX[1] + GAP_BIN_PX, GAP_BIN_PX)
+    pb, gb = _bins(s.phase_dim_deg[vis], phase_edges), _bins(gap[vis], gap_edges)
+    far_from = int(np.searchsorted(gap_edges, NEVER_MERGED_PX))
+    merge, drop = _not_seen_tables(rep[vis], gb, pb, gap_edges.size - 1, phase_edges.size - 1, far_from)
+    gap_used = [b for b in range(gap_edges.size - 1) if np.sum(gb == b) >= MIN_BIN_FRAMES]
     phases, dropout, bias, bias_ok = [], [], [], []
     along = np.sum(err * s.towards_sun_dim, axis=1)
-    for b in range(edges.size - 1):
-        in_bin = apart & (idx == b)
-        if in_bin.sum() < MIN_BIN_FRAMES:
+    phase_all = _bins(s.phase_dim_deg, phase_edges)
+    for b in range(phase_edges.size - 1):
+        if np.sum(pb == b) < MIN_BIN_FRAMES:
             continue
-        phases.append(float(np.mean(s.phase_dim_deg[in_bin])))
-        dropout.append(float(np.mean(~rep[in_bin])))
-        g = good & (idx == b)
+        phases.append(float(np.mean(s.phase_dim_deg[vis][pb == b])))
+        dropout.append(float(drop[b]))
+        g = good & (phase_all == b)
         bias_ok.append(g.sum() >= MIN_BIAS_FRAMES)
         r = s.radius_dim[g]
         bias.append(float(np.sum(along[g] * r) / np.sum(r * r)) if bias_ok[-1] else 0.0)
-    if not phases:
-        raise ValueError(f"no phase bin has {MIN_BIN_FRAMES} frames with Dimorphos in view: run more runs")
+    if not phases or not gap_used:
+        raise ValueError(f"no phase or gap bin has {MIN_BIN_FRAMES} frames with Dimorphos in view: run more runs")
     ph = np.asarray(phases)
     bias_table = _table(ph, np.asarray(bias), np.asarray(bias_ok))
     shift = np.interp(s.phase_dim_deg, ph, bias_table)[:, None] * s.radius_dim[:, None] * s.towards_sun_dim
@@ -177,15 +210,17 @@ def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig
     (a, slope), _ = nnls(np.asarray(rows), np.asarray(sig))
     did_vis = s.inside(s.true_did)
     did_drop = float(np.mean(~np.all(np.isfinite(s.reported_did[did_vis]), axis=1))) if did_vis.any() else 0.0
+    gap_mid = [float(np.mean(gap[vis][gb == b])) for b in gap_used]
     model = CentroidModelConfig(
         phase_deg=tuple(round(p, 3) for p in ph), bias_radius_fraction=tuple(round(float(b), 4) for b in bias_table),
         dimorphos_dropout=tuple(round(d, 4) for d in dropout), noise_px=round(float(a), 4),
-        noise_radius_fraction=round(float(slope), 4), merge_gap_px=round(merge_gap, 2),
-        didymos_dropout=round(did_drop, 4),
+        noise_radius_fraction=round(float(slope), 4), merge_gap_px=tuple(round(g, 2) for g in gap_mid),
+        merge_probability=tuple(round(float(merge[b]), 4) for b in gap_used), didymos_dropout=round(did_drop, 4),
         misidentification=round(float(misid.sum() / max(rep.sum(), 1)), 5))
     lines = [f"{vis.size} frames, {int(vis.sum())} with Dimorphos in the image, {int(rep.sum())} reporting it, "
              f"{int(misid.sum())} misidentified (> {tolerance_px:g} px), {int(did_vis.sum())} with Didymos in it",
-             f"merge gap {merge_gap:g} px: {min(wrong)} frames on the wrong side of it",
+             f"merge table over {len(gap_used)} gap bins of {GAP_BIN_PX:g} px, dropout table over {len(ph)} phase "
+             f"bins of {PHASE_BIN_DEG:g} deg",
              f"noise fitted over {len(sig)} radius bins: {a:.3f} px + {slope:.3f} x radius"]
     return model, lines
 

@@ -17,7 +17,8 @@ from universe.measurement import body_view, centroid_measurement
 
 CAMERA = CameraConfig()
 TRUE = CentroidModelConfig(phase_deg=(0.0, 180.0), bias_radius_fraction=(0.1, 0.7), dimorphos_dropout=(0.05, 0.25),
-                           noise_px=0.8, noise_radius_fraction=0.05, merge_gap_px=6.0, didymos_dropout=0.1,
+                           noise_px=0.8, noise_radius_fraction=0.05, merge_gap_px=(0.0, 12.0),
+                           merge_probability=(1.0, 0.0), didymos_dropout=0.1,
                            misidentification=0.02)
 
 
@@ -55,13 +56,15 @@ def synthetic_samples(n: int, seed: int) -> FrameSamples:
 
 def test_the_fit_recovers_the_model_that_made_the_frames() -> None:
     """On 6000 frames measured by a known model, the fit finds its bias and dropout against phase, its noise law,
-    merge gap and rates within their sampling errors."""
+    merge table and rates within their sampling errors."""
     fitted, _ = fit_model(synthetic_samples(6000, 1), tolerance_px=30.0)
     phases = np.array(fitted.phase_deg)
     assert phases.size >= 10
     np.testing.assert_allclose(fitted.bias_radius_fraction, np.interp(phases, (0, 180), (0.1, 0.7)), atol=0.08)
     np.testing.assert_allclose(fitted.dimorphos_dropout, np.interp(phases, (0, 180), (0.05, 0.25)), atol=0.12)
-    assert abs(fitted.merge_gap_px - 6.0) <= 1.0
+    gaps = np.array(fitted.merge_gap_px)
+    np.testing.assert_allclose(fitted.merge_probability, np.interp(gaps, (0.0, 12.0), (1.0, 0.0)), atol=0.15)
+    assert gaps.min() < 0.0 and gaps.max() > 12.0
     assert fitted.noise_px == pytest.approx(0.8, abs=0.25)
     assert fitted.noise_radius_fraction == pytest.approx(0.05, abs=0.015)
     assert fitted.didymos_dropout == pytest.approx(0.1, abs=5 * math.sqrt(0.1 * 0.9 / 6000))
