@@ -398,8 +398,9 @@ class CentroidModelConfig(Config):
     Per body whose centre projects into the frame: the true pinhole projection of its centre, shifted towards the
     Sun's side of the image by a fraction of its apparent radius that depends on the phase angle, plus Gaussian
     noise. Dimorphos is not reported when the chain cannot tell it from Didymos (a probability that depends on the
-    gap between their discs), nor in a dropout (a probability that depends on the phase angle); a misidentified
-    Dimorphos is reported where the chain puts Didymos. Positions in full-resolution camera px.
+    gap between their discs), nor in a dropout (a probability that depends on the phase angle); in a
+    misidentification episode (a few frames running) it is reported where the chain puts Didymos. Positions in
+    full-resolution camera px.
 
     Defaults: fitted by ``flyby mc-fit configs/scenarios/nominal.yaml --runs 40 --seed 1000 --dispersions
     configs/dispersions/flyby.yaml`` (17,818 frames of 40 image-level runs; README, "Centroid-level fidelity").
@@ -431,7 +432,11 @@ class CentroidModelConfig(Config):
         "constant beyond)")
     didymos_dropout: float = Field(0.1171, ge=0, le=1, description="probability that a visible Didymos is not reported")
     misidentification: float = Field(
-        0.01074, ge=0, le=1, description="probability that a reported Dimorphos is placed where Didymos is reported")
+        0.01074, ge=0, le=1,
+        description="probability that a misidentification episode starts at a frame reporting Dimorphos: it is "
+        "reported where Didymos is reported")
+    misidentification_frames: float = Field(
+        1.0, ge=1, description="mean length of a misidentification episode, frames reporting Dimorphos (geometric)")
 
     @model_validator(mode="after")
     def _tables(self) -> CentroidModelConfig:

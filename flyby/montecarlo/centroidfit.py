@@ -4,16 +4,20 @@ Each image-level run gives, per camera frame, the truth (the pinhole projections
 attitude, ranges, phase angle) and what the on-board imaging chain reported (the NavigationReport's binned
 centroids, taken back to full resolution). Over all frames of all runs:
 
-- a reported Dimorphos farther from its truth than the report's centroid tolerance is a misidentification; its
-  rate is over the frames that report Dimorphos;
+- a reported Dimorphos farther from its truth than the report's centroid tolerance is misidentified; consecutive
+  ones (among the frames of a run reporting it) make an episode: the start rate is per frame reporting Dimorphos
+  outside an episode, with the episodes' mean length;
 - a frame with Dimorphos in the image reports it with probability (1 - merge) x (1 - dropout), merge depending
   on the gap between the two discs (4 px bins) and dropout on the phase angle (10 deg bins): both tables are
   estimated alternately, each bin's seen fraction divided by what the other table expects;
 - per phase bin, the least-squares centroid shift towards the Sun's side per apparent radius;
-- the noise left after that bias, per axis, as a + b x radius (non-negative least squares over radius bins);
+- the noise left after that bias, per axis, as a + b x radius (non-negative least squares over radius bins of a
+  robust sigma, 1.4826 x the median absolute residual);
 - Didymos's dropout rate over the frames with Didymos in the image.
 
-The model file written (``universe: centroid_model: ...``) is what ``flyby mc --centroid-model FILE`` takes.
+The model file written (``universe: centroid_model: ...``) is what ``flyby mc --centroid-model FILE`` takes. Each
+run's samples are kept (``--samples DIR``, default beside the model file), so an interrupted fit resumes and a
+change to the fit reruns no flyby.
 """
 
 from __future__ import annotations
@@ -50,6 +54,7 @@ NEVER_MERGED_PX = 40.0  # discs this far apart are always told apart (the chain'
 MIN_BIN_FRAMES = 30  # a phase bin enters the tables with at least this many frames
 MIN_BIAS_FRAMES = 10  # and its bias with at least this many well-identified detections (else interpolated)
 RADIUS_BINS = 10
+MAD_TO_SIGMA = 1.4826  # one Gaussian sigma per median absolute deviation
 
 
 @dataclass
@@ -64,6 +69,7 @@ class FrameSamples:
     radius_did: NDArray[np.float64]
     phase_dim_deg: NDArray[np.float64]
     towards_sun_dim: NDArray[np.float64]  # (N, 2) unit image direction
+    run: NDArray[np.int64]  # the run each frame belongs to (frames of a run in time order)
     side_px: int
 
     @classmethod
@@ -71,7 +77,21 @@ class FrameSamples:
         """All frames of several runs."""
         return cls(*(np.concatenate([getattr(p, f) for p in parts]) for f in (
             "true_dim", "true_did", "reported_dim", "reported_did", "radius_dim", "radius_did", "phase_dim_deg",
-            "towards_sun_dim")), side_px=parts[0].side_px)
+            "towards_sun_dim", "run")), side_px=parts[0].side_px)
+
+    def save(self, path: Path) -> None:
+        """Write the samples as one .npz file, whole or not at all (written aside, then renamed)."""
+        tmp = path.with_name(path.name + ".part")
+        with open(tmp, "wb") as f:
+            np.savez(f, **{k: np.asarray(v) for k, v in vars(self).items()})
+        tmp.replace(path)
+
+    @classmethod
+    def load(cls, path: Path) -> FrameSamples:
+        """Samples written by ``save``."""
+        with np.load(path) as z:
+            d = {k: z[k] for k in z.files}
+        return cls(**{**d, "side_px": int(d["side_px"])})
 
     def inside(self, xy: NDArray[np.float64]) -> NDArray[np.bool_]:
         """Whether positions fall in the frame (as the measurement model decides it)."""
@@ -85,9 +105,9 @@ def full_resolution(xy: tuple[float, float] | None, factor: float) -> tuple[floa
     return (factor * xy[0] + (factor - 1) / 2, factor * xy[1] + (factor - 1) / 2)
 
 
-def frame_samples(scenario: Scenario, truth: list[TruthRecord], navigation: list[tuple[float, pus.NavigationReport]]
-                  ) -> FrameSamples:
-    """The samples of one image-level run: every frame the truth records, with the report of it if any."""
+def frame_samples(scenario: Scenario, truth: list[TruthRecord], navigation: list[tuple[float, pus.NavigationReport]],
+                  run: int = 0) -> FrameSamples:
+    """The samples of image-level run ``run``: every frame the truth records, with the report of it if any."""
     u = scenario.universe
     factor = u.camera.resolution_px / scenario.obsw.imaging.binned_size_px
     reports = {nav.frame_id: nav for _, nav in navigation}
@@ -116,7 +136,8 @@ def frame_samples(scenario: Scenario, truth: list[TruthRecord], navigation: list
     arr = {k: np.asarray(v, dtype=float).reshape(len(v), 2 if k in ("td", "ti", "rd", "ri", "sun") else 1)
            for k, v in cols.items()}
     return FrameSamples(arr["td"], arr["ti"], arr["rd"], arr["ri"], arr["rad_d"][:, 0], arr["rad_i"][:, 0],
-                        arr["ph"][:, 0], arr["sun"], u.camera.resolution_px)
+                        arr["ph"][:, 0], arr["sun"], np.full(len(cols["td"]), run, dtype=np.int64),
+                        u.camera.resolution_px)
 
 
 def fit_run(payload: str, k: int) -> FrameSamples:
@@ -125,7 +146,7 @@ def fit_run(payload: str, k: int) -> FrameSamples:
     run = dispersed_run(campaign.scenario, campaign.seed, k)
     out = run_in_process(run.scenario, campaign.timeline)
     tm = decoded_telemetry([p.raw for p in out.received], f"run {k}")
-    return frame_samples(run.scenario, out.truth, tm.navigation)
+    return frame_samples(run.scenario, out.truth, tm.navigation, k)
 
 
 def _table(phase: NDArray[np.float64], values: NDArray[np.float64], ok: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -206,8 +227,15 @@ def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig
         m = ridx == b
         if m.sum() >= MIN_BIAS_FRAMES:
             rows.append((1.0, float(np.mean(r_good[m]))))
-            sig.append(float(np.sqrt(np.mean(res[m] ** 2))))  # per axis: mean over both axes' squares
+            sig.append(MAD_TO_SIGMA * float(np.median(np.abs(res[m]))))  # per axis, robust to rare outliers
     (a, slope), _ = nnls(np.asarray(rows), np.asarray(sig))
+    # episodes: runs of misidentified frames, run by run, among the frames that could show one (Dimorphos and
+    # Didymos reported, farther apart than the tolerance: a misidentification there is seen)
+    could = rep & np.all(np.isfinite(s.reported_did), axis=1) & (np.hypot(*(s.true_dim - s.true_did).T) > tolerance_px)
+    order = np.flatnonzero(could)
+    flags, runs = misid[order], s.run[order]
+    starts = int(np.sum(flags & ~np.r_[False, flags[:-1] & (runs[1:] == runs[:-1])]))
+    episode_frames_seen = int(flags.sum())
     did_vis = s.inside(s.true_did)
     did_drop = float(np.mean(~np.all(np.isfinite(s.reported_did[did_vis]), axis=1))) if did_vis.any() else 0.0
     gap_mid = [float(np.mean(gap[vis][gb == b])) for b in gap_used]
@@ -216,9 +244,11 @@ def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig
         dimorphos_dropout=tuple(round(d, 4) for d in dropout), noise_px=round(float(a), 4),
         noise_radius_fraction=round(float(slope), 4), merge_gap_px=tuple(round(g, 2) for g in gap_mid),
         merge_probability=tuple(round(float(merge[b]), 4) for b in gap_used), didymos_dropout=round(did_drop, 4),
-        misidentification=round(float(misid.sum() / max(rep.sum(), 1)), 5))
+        misidentification=round(starts / max(int((could & ~misid).sum()) + starts, 1), 6),
+        misidentification_frames=round(max(1.0, episode_frames_seen / starts) if starts else 1.0, 3))
     lines = [f"{vis.size} frames, {int(vis.sum())} with Dimorphos in the image, {int(rep.sum())} reporting it, "
-             f"{int(misid.sum())} misidentified (> {tolerance_px:g} px), {int(did_vis.sum())} with Didymos in it",
+             f"{int(misid.sum())} misidentified (> {tolerance_px:g} px) in {starts} episodes, {int(did_vis.sum())} "
+             "with Didymos in it",
              f"merge table over {len(gap_used)} gap bins of {GAP_BIN_PX:g} px, dropout table over {len(ph)} phase "
              f"bins of {PHASE_BIN_DEG:g} deg",
              f"noise fitted over {len(sig)} radius bins: {a:.3f} px + {slope:.3f} x radius"]
@@ -246,14 +276,26 @@ def cmd_fit(args: argparse.Namespace) -> int:
             print(f"  {line}", file=sys.stderr)
         return EXIT_CONFIG
     payload = campaign.to_json()
-    parts: list[FrameSamples] = []
-    progress = Progress(args.runs)
-    with dask_client(args.scheduler, args.workers, processes=not args.threads) as client:
-        shared = client.scatter(payload, broadcast=True, hash=False)
-        for fut in as_completed([client.submit(fit_run, shared, k, pure=False) for k in range(args.runs)]):
-            parts.append(fut.result())
-            progress.update(ok=True)
+    folder = args.samples or args.out.with_name(args.out.name + ".samples")
+    folder.mkdir(parents=True, exist_ok=True)
+    stamp = folder / "campaign.json"
+    if stamp.is_file() and stamp.read_text(encoding="utf-8") != payload:
+        print(f"flyby mc-fit: {folder} holds the samples of another campaign; choose another --samples",
+              file=sys.stderr)
+        return EXIT_CONFIG
+    stamp.write_text(payload, encoding="utf-8")
+    stored = {k: folder / f"run-{k:05d}.npz" for k in range(args.runs)}
+    todo = [k for k, path in stored.items() if not path.is_file()]
+    progress = Progress(args.runs, args.runs - len(todo))
+    if todo:
+        with dask_client(args.scheduler, args.workers, processes=not args.threads) as client:
+            shared = client.scatter(payload, broadcast=True, hash=False)
+            futures = {client.submit(fit_run, shared, k, pure=False): k for k in todo}
+            for fut in as_completed(futures):
+                fut.result().save(stored[futures[fut]])  # kept: a rerun or a refit reads it back
+                progress.update(ok=True)
     progress.finish()
+    parts = [FrameSamples.load(path) for path in stored.values()]
     sc = campaign.scenario
     factor = sc.universe.camera.resolution_px / sc.obsw.imaging.binned_size_px
     model, lines = fit_model(FrameSamples.concat(parts), sc.ground.report.centroid_tolerance_px * factor)

@@ -228,5 +228,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--out", type=Path, required=True, help="model file to write (YAML)")
     f.add_argument("--seed", type=int, default=None, help="campaign seed (default: the scenario's seed)")
     f.add_argument("--dispersions", type=Path, default=None, metavar="FILE", help="dispersions to add (YAML)")
+    f.add_argument("--samples", type=Path, default=None, metavar="DIR",
+                   help="where each run's frame samples are kept (default: OUT.samples beside the model file)")
     add_cluster_arguments(f)
     f.set_defaults(func=cmd_fit)

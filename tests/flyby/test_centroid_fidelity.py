@@ -19,7 +19,7 @@ from universe.config import CentroidModelConfig
 ROOT = Path(__file__).resolve().parents[2]
 PERFECT = CentroidModelConfig(phase_deg=(0.0,), bias_radius_fraction=(0.0,), dimorphos_dropout=(0.0,), noise_px=0.0,
                               noise_radius_fraction=0.0, merge_gap_px=(0.0,), merge_probability=(0.0,),
-                              didymos_dropout=0.0, misidentification=0.0)
+                              didymos_dropout=0.0, misidentification=0.0, misidentification_frames=1.0)
 
 
 def test_a_perfect_measurement_model_reports_the_true_centroids_on_board() -> None:

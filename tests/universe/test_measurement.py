@@ -12,12 +12,12 @@ from scenario import compose
 from scenario.model import Scenario
 from universe.camera import Body, Scene
 from universe.config import CameraConfig, CentroidModelConfig, UniverseConfig
-from universe.measurement import body_view, centroid_measurement
+from universe.measurement import MeasurementState, body_view, centroid_measurement, episode_frames
 
 CAMERA = CameraConfig()
 PERFECT = dict(phase_deg=(0.0,), bias_radius_fraction=(0.0,), dimorphos_dropout=(0.0,), noise_px=0.0,
                noise_radius_fraction=0.0, merge_gap_px=(0.0,), merge_probability=(0.0,), didymos_dropout=0.0,
-               misidentification=0.0)
+               misidentification=0.0, misidentification_frames=1.0)
 F_1024 = 512.0 / math.tan(math.radians(2.9) / 2.0)  # closed-form focal length of the default camera, px
 C_1024 = 511.5
 
@@ -108,6 +108,23 @@ def test_dropout_and_misidentification_rates() -> None:
     assert abs(did_lost - 0.05) < 5 * math.sqrt(0.05 * 0.95 / n)
     p_swap = 0.8 * 0.95 * 0.1  # reported, Didymos reported, then misidentified
     assert abs(swapped - p_swap) < 5 * math.sqrt(p_swap * (1 - p_swap) / n)
+
+
+def test_misidentifications_come_in_episodes_of_the_mean_length() -> None:
+    """Carried from frame to frame, episodes start at the configured rate among frames outside one and last the
+    configured mean number of frames (geometric: standard error sqrt(m (m - 1) / episodes))."""
+    sc = scene()
+    m_cfg = model(misidentification=0.02, misidentification_frames=5.0)
+    rng, state = np.random.default_rng(9), MeasurementState()
+    ms = [centroid_measurement(sc, CAMERA, m_cfg, rng, state) for _ in range(20000)]
+    flags = np.array([m.dimorphos_col_row == m.didymos_col_row for m in ms], dtype=bool)
+    p, mean = 0.02, 5.0
+    in_episodes = mean * p / (mean * p + 1 - p)  # renewal: episodes of mean length between geometric waits
+    assert abs(flags.mean() - in_episodes) < 0.02
+    assert np.sum(flags[1:] & ~flags[:-1]) > 150  # they come in runs, not frame by frame
+    mean_len = np.mean([episode_frames(5.0, u) for u in np.random.default_rng(10).random(20000)])
+    assert abs(mean_len - 5.0) < 5 * math.sqrt(5.0 * 4.0 / 20000)
+    assert episode_frames(1.0, 0.99) == 1 and episode_frames(5.0, 0.0) == 1
 
 
 def test_touching_discs_and_blank_frames_report_no_dimorphos() -> None:
