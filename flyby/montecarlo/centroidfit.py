@@ -53,6 +53,8 @@ ALTERNATIONS = 10  # alternating estimates of the merge and dropout tables (they
 NEVER_MERGED_PX = 40.0  # discs this far apart are always told apart (the chain's blobs are a few px wide)
 MIN_BIN_FRAMES = 30  # a phase bin enters the tables with at least this many frames
 MIN_BIAS_FRAMES = 10  # and its bias with at least this many well-identified detections (else interpolated)
+MIN_GAP_FRAMES = 10  # a gap bin enters the merge table with at least this many frames (the few with the discs
+#                      touching, around C/A, are what the table is for)
 RADIUS_BINS = 10
 MAD_TO_SIGMA = 1.4826  # one Gaussian sigma per median absolute deviation
 
@@ -200,7 +202,7 @@ def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig
     pb, gb = _bins(s.phase_dim_deg[vis], phase_edges), _bins(gap[vis], gap_edges)
     far_from = int(np.searchsorted(gap_edges, NEVER_MERGED_PX))
     merge, drop = _not_seen_tables(rep[vis], gb, pb, gap_edges.size - 1, phase_edges.size - 1, far_from)
-    gap_used = [b for b in range(gap_edges.size - 1) if np.sum(gb == b) >= MIN_BIN_FRAMES]
+    gap_used = [b for b in range(gap_edges.size - 1) if np.sum(gb == b) >= MIN_GAP_FRAMES]
     phases, dropout, bias, bias_ok = [], [], [], []
     along = np.sum(err * s.towards_sun_dim, axis=1)
     phase_all = _bins(s.phase_dim_deg, phase_edges)
@@ -214,7 +216,7 @@ def fit_model(s: FrameSamples, tolerance_px: float) -> tuple[CentroidModelConfig
         r = s.radius_dim[g]
         bias.append(float(np.sum(along[g] * r) / np.sum(r * r)) if bias_ok[-1] else 0.0)
     if not phases or not gap_used:
-        raise ValueError(f"no phase or gap bin has {MIN_BIN_FRAMES} frames with Dimorphos in view: run more runs")
+        raise ValueError("too few frames with Dimorphos in view for a phase or a gap bin: run more runs")
     ph = np.asarray(phases)
     bias_table = _table(ph, np.asarray(bias), np.asarray(bias_ok))
     shift = np.interp(s.phase_dim_deg, ph, bias_table)[:, None] * s.radius_dim[:, None] * s.towards_sun_dim

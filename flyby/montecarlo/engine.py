@@ -9,12 +9,13 @@ so a campaign killed or interrupted loses at most those: every finished run is a
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterator
+import uuid
+from collections.abc import Iterator
 from contextlib import contextmanager
 
 from distributed import Client, Future, LocalCluster, as_completed
 
-from flyby.montecarlo.campaign import Campaign, RunResult, failed_result, run_one
+from flyby.montecarlo.campaign import Campaign, failed_result, run_one
 from flyby.montecarlo.progress import Progress
 from flyby.montecarlo.store import ResultStore
 
@@ -47,7 +48,7 @@ def worker_count(client: Client) -> int:
 
 
 def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: ResultStore, progress: Progress,
-                 stop_after: int | None = None, on_result: Callable[[RunResult], None] | None = None) -> int:
+                 stop_after: int | None = None) -> int:
     """Run ``runs`` of ``campaign`` on the cluster, appending each result to ``store`` as it arrives; return how many
     were stored. ``stop_after`` stops (cancelling the runs in flight) once that many were stored, as a kill would.
 
@@ -55,6 +56,7 @@ def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: Res
     """
     payload = campaign.to_json()
     shared = client.scatter(payload, broadcast=True, hash=False)  # once to each worker; own key per campaign call
+    token = uuid.uuid4().hex[:8]  # task keys of this call, apart from any other campaign on the cluster
     todo = iter(runs)
     pending = as_completed()
     in_flight: dict[Future, int] = {}
@@ -65,7 +67,7 @@ def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: Res
             k = next(todo, None)
             if k is None:
                 return
-            fut = client.submit(run_one, shared, k, pure=False, key=f"flyby-run-{k}-{id(store):x}")
+            fut = client.submit(run_one, shared, k, pure=False, key=f"flyby-run-{k}-{token}")
             in_flight[fut] = k
             pending.add(fut)
 
@@ -81,8 +83,6 @@ def run_campaign(client: Client, campaign: Campaign, runs: list[int], store: Res
             store.append(result)
             stored += 1
             progress.update(result.ok, result.passed)
-            if on_result is not None:
-                on_result(result)
             if stop_after is not None and stored >= stop_after:
                 break
             top_up()
