@@ -130,7 +130,6 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 
 def _run_in(store: ResultStore, campaign: Campaign, args: argparse.Namespace) -> int:
     """Run the campaign's runs that ``store`` lacks, then write the report."""
-    from contracts.clock import WallClock
     from flyby.montecarlo.engine import dask_client, run_campaign, worker_count
     from flyby.montecarlo.progress import Progress
     from flyby.montecarlo.report import write_report
@@ -147,26 +146,21 @@ def _run_in(store: ResultStore, campaign: Campaign, args: argparse.Namespace) ->
     done = store.done()
     todo = [k for k in range(args.runs) if k not in done]
     progress = Progress(args.runs, already=args.runs - len(todo))
-    clock = WallClock()
     interrupted = False
     with dask_client(args.scheduler, args.workers, processes=not args.threads) as client:
         workers = worker_count(client)
         print(f"flyby mc: {len(todo)} run(s) of {campaign.scenario.name} to do ({len(done)} stored) on {workers} "
               f"worker(s); results in {args.out / STORE_NAME}", file=sys.stderr)
-        t0 = clock.now()
         try:
             run_campaign(client, campaign, todo, store, progress)
         except KeyboardInterrupt:
             interrupted = True
-        busy = (clock.now() - t0) * workers
-    store.set_meta({"worker_seconds": str(float(store.meta().get("worker_seconds", "0")) + busy)})
     page = write_report(args.out, store, campaign, args.goal, str(args.out))
     rows = store.rows()
     passed = sum(1 for r in rows if r["status"] == "ok" and r["all_pass"] == 1)
     print(f"flyby mc: {len(rows)} of {args.runs} runs stored, {passed} met every requirement; report: {page}")
     if interrupted:
-        print(f"flyby mc: interrupted; flyby mc {args.scenario} --runs {args.runs} --out {args.out} --resume "
-              "continues it", file=sys.stderr)
+        print("flyby mc: interrupted; the same command with --resume continues it", file=sys.stderr)
         return EXIT_INTERRUPTED
     return EXIT_OK if passed == len(rows) else EXIT_INTERNAL
 

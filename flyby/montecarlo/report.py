@@ -163,7 +163,6 @@ def summary_rows(t: CampaignTables, meta: dict[str, str], campaign: Campaign) ->
     wall = t.column("wall_s")[t.ok]
     sim = t.column("sim_s")[t.ok]
     rtf = sim / wall if wall.size else np.array([])
-    busy = float(meta.get("worker_seconds", "0"))
     rows = [("scenario", campaign.scenario.name), ("campaign seed", str(campaign.seed)),
             ("fidelity", campaign.scenario.universe.fidelity),
             ("runs stored", f"{len(t.rows)} of {meta.get('runs', '?')} requested"),
@@ -173,8 +172,9 @@ def summary_rows(t: CampaignTables, meta: dict[str, str], campaign: Campaign) ->
     if wall.size:
         rows += [("wall time per run (median)", f"{np.median(wall):.2f} s"),
                  ("real-time factor per run (median)", f"{np.median(rtf):.1f} x (simulated s per wall s)")]
-    if busy > 0:
-        rows.append(("runs per second per core", f"{len(t.rows) / busy:.3f} (over {busy:.0f} worker-seconds)"))
+    if wall.size:
+        rows.append(("runs per second per core", f"{1 / np.mean(wall):.3f} (one over the mean wall time of a run on its "
+                     "worker)"))
     return rows
 
 

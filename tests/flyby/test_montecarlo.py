@@ -4,7 +4,6 @@ Dask LocalCluster (stopped and resumed, a run that raises), and ``flyby mc`` fro
 from __future__ import annotations
 
 import io
-import math
 import sqlite3
 from pathlib import Path
 
@@ -173,7 +172,7 @@ def test_flyby_mc_campaign_report_resume_and_replay(tiny: Path, tmp_path: Path, 
     assert written.ground.timeline_file == "timeline.yaml" and timeline == campaign.timeline
     assert written.model_copy(update={"ground": expected.ground}) == expected
     with open_store(out) as store:
-        assert store.done() == {0, 1} and math.isfinite(float(store.meta()["worker_seconds"]))
+        assert store.done() == {0, 1} and all(r["wall_s"] > 0 for r in store.rows())
     assert main(["mc", "--out", str(tmp_path / "none"), "--report"]) == EXIT_CONFIG
     assert not (tmp_path / "none").exists()  # a mistyped folder is reported, not created
     assert np.isfinite([r["in_view_fraction"] for r in ResultStore(out / STORE_NAME).rows()]).all()
