@@ -1,7 +1,7 @@
 """Does the centroid-level fidelity fly like the image level? Two-sample Kolmogorov-Smirnov tests of the in-view
-fraction and of the largest pointing error over the runs of two campaigns of the same scenario and dispersions,
-one at image level and one at centroid level (its model fitted by ``flyby mc-fit`` on runs of another campaign
-seed), as ``bench/montecarlo.py`` or ``flyby mc`` leave them:
+fraction, the largest pointing error, the worst centroid and the detection latency over the runs of two campaigns
+of the same scenario and dispersions, one at image level and one at centroid level (its model fitted by
+``flyby mc-fit`` on runs of another campaign seed), as ``bench/montecarlo.py`` or ``flyby mc`` leave them:
 
     python bench/montecarlo.py configs/scenarios/nominal.yaml --runs 200 --fidelity image --out runs/mc-bench
     python bench/montecarlo.py configs/scenarios/nominal.yaml --runs 200 --fidelity centroid --out runs/mc-bench
@@ -27,7 +27,9 @@ from scipy.stats import ks_2samp  # noqa: E402
 from flyby.montecarlo.store import open_store  # noqa: E402
 
 FIGURES = (("in_view_fraction", "target in view, fraction of frames"),
-           ("max_pointing_error_deg", "largest pointing error, deg"))
+           ("max_pointing_error_deg", "largest pointing error, deg"),
+           ("max_centroid_error_px", "worst Dimorphos centroid, px"),
+           ("detection_latency_s", "ACQUISITION to TargetAcquired, s"))
 
 
 def figure(folder: Path, name: str) -> np.ndarray:
