@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from contracts.exitcodes import EXIT_CONFIG
+from ground.archive import Archive, ArchiveError
 from ground.config import ReportConfig
 from analysis.frames import gif_section
 from analysis.page import counts_section, events_section, report_html
@@ -49,6 +50,18 @@ def write_report(run_dir: Path, cfg: ReportConfig | None = None) -> Path:
     return build_report(run_dir, cfg)[0]
 
 
+def archive_damage(run_dir: Path) -> str | None:
+    """What is wrong with the run's archive.sqlite, or None if it is intact or absent."""
+    db = Path(run_dir) / "archive.sqlite"
+    if not db.is_file():
+        return None
+    try:
+        Archive.read_only(db).close()
+    except ArchiveError as exc:
+        return str(exc)
+    return None
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     """``flyby report RUN_DIR``: regenerate the report of a run; exit 2 if the folder cannot be reported on."""
     try:
@@ -58,4 +71,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         return EXIT_CONFIG
     verdict = "all requirements PASS" if figs.all_pass else "some requirement FAILS or was not assessed"
     print(f"{path}: {verdict}")
+    damage = archive_damage(args.run_dir)
+    if damage:  # the report was written from tm.bin; exit 2 so a script sees the damaged archive
+        print(f"flyby report: {damage}", file=sys.stderr)
+        return EXIT_CONFIG
     return 0

@@ -7,12 +7,13 @@ says, one line each, what it lacks.
 from __future__ import annotations
 
 import json
+import sqlite3
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from contracts.errors import FlybyError, ScenarioError
 from contracts.truthtable import TruthTableError
-from ground.tmquery import run_archive
+from ground.archive import Archive, ArchiveError
 from scenario.model import Scenario, load_scenario
 from analysis.telemetry import Telemetry, load_telemetry
 from analysis.truth import Truth, load_truth
@@ -22,12 +23,20 @@ class RunFolderError(FlybyError):
     """The run folder cannot be used at all (no such folder, no readable scenario.yaml)."""
 
 
-def archive_counts(run_dir: Path) -> dict[str, int] | None:
-    """Archive.counts() of the run's archive.sqlite, or None if it has none."""
-    if not (run_dir / "archive.sqlite").is_file():
+def archive_counts(run_dir: Path, missing: list[str]) -> dict[str, int] | None:
+    """Archive.counts() of the run's archive.sqlite, or None if it has none or it is damaged (said in ``missing``)."""
+    db = run_dir / "archive.sqlite"
+    if not db.is_file():
         return None
-    with run_archive(run_dir) as archive:
-        return archive.counts()
+    try:
+        archive = Archive.read_only(db)
+        try:
+            return archive.counts()
+        finally:
+            archive.close()
+    except (ArchiveError, sqlite3.DatabaseError) as exc:
+        missing.append(f"archive.sqlite unusable ({exc}): no sequence-gap analysis")
+        return None
 
 
 def frame_paths(run_dir: Path) -> dict[int, Path]:
@@ -64,7 +73,7 @@ def _truth(path: Path, missing: list[str]) -> Truth | None:
         return None
     try:
         truth = load_truth(path)
-    except TruthTableError as err:
+    except (TruthTableError, UnicodeDecodeError) as err:
         missing.append(f"truth.csv unusable: {err}")
         return None
     if truth.skipped_rows:
@@ -86,10 +95,14 @@ def load_run(run_dir: Path) -> RunData:
         raise RunFolderError(f"{run_dir}: cannot report without the scenario: {err}") from None
     missing: list[str] = []
     truth = _truth(run_dir / "truth.csv", missing)
-    telemetry = load_telemetry(run_dir)
-    if telemetry is None:
-        missing.append("no tm.bin and no archive.sqlite: no telemetry was received")
-    elif telemetry.truncated_tail_octets:
+    try:
+        telemetry = load_telemetry(run_dir)
+        if telemetry is None:
+            missing.append("no tm.bin and no archive.sqlite: no telemetry was received")
+    except ArchiveError as exc:
+        telemetry = None
+        missing.append(f"no tm.bin and archive.sqlite is unusable ({exc}): no telemetry")
+    if telemetry is not None and telemetry.truncated_tail_octets:
         missing.append(f"tm.bin ends with {telemetry.truncated_tail_octets} octets of an incomplete packet")
     frames = frame_paths(run_dir)
     if not frames:
@@ -102,4 +115,5 @@ def load_run(run_dir: Path) -> RunData:
             missing.append(f"summary.json unreadable: {err!r}")
     else:
         missing.append("no summary.json: the ground node did not finish")
-    return RunData(run_dir, scenario, truth, telemetry, frames, summary, archive_counts(run_dir), missing)
+    counts = archive_counts(run_dir, missing)
+    return RunData(run_dir, scenario, truth, telemetry, frames, summary, counts, missing)

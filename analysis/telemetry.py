@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from contracts import pus
+from ground.archive import Archive, ArchiveError
 
 MODE_NAMES = {m.value: m.name for m in pus.Mode}
 
@@ -26,22 +27,6 @@ class Telemetry:
     mode_changes: list[tuple[float, pus.ModeChangedEvent]] = field(default_factory=list)
     events: list[tuple[float, pus.EventReport]] = field(default_factory=list)
     by_type: dict[tuple[int, int, str], int] = field(default_factory=dict)  # (service, subtype, report): count
-
-
-def complete_packets(stream: bytes) -> tuple[list[bytes], int]:
-    """Cut a stream of concatenated space packets; return the packets and the octets of an incomplete last one.
-
-    Like ``pus.split_packets``, but a stream cut short (a node killed mid-write) keeps every complete packet.
-    """
-    out: list[bytes] = []
-    pos, n = 0, len(stream)
-    while n - pos >= pus.PRIMARY_HEADER_LEN:
-        size = pus.PRIMARY_HEADER_LEN + int.from_bytes(stream[pos + 4 : pos + 6], "big") + 1  # CCSDS length field
-        if pos + size > n:
-            break
-        out.append(stream[pos : pos + size])
-        pos += size
-    return out, n - pos
 
 
 def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
@@ -70,19 +55,23 @@ def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
 
 
 def load_telemetry(run_dir: Path) -> Telemetry | None:
-    """The run's telemetry from tm.bin, else from the raw packets in archive.sqlite; None if neither exists."""
+    """The run's telemetry from tm.bin, else from the raw packets in archive.sqlite; None if neither exists;
+    ArchiveError if only a damaged archive is there."""
     tm_bin = run_dir / "tm.bin"
     if tm_bin.is_file():
-        packets, tail = complete_packets(tm_bin.read_bytes())
+        packets, tail = pus.complete_packets(tm_bin.read_bytes())
         tm = decoded_telemetry(packets, "tm.bin")
         tm.truncated_tail_octets = tail
         return tm
     db = run_dir / "archive.sqlite"
     if db.is_file():
-        con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)  # read-only: a report never changes the archive
         try:
-            raws = [bytes(r) for (r,) in con.execute("SELECT raw FROM packets ORDER BY id")]
-        finally:
-            con.close()
+            archive = Archive.read_only(db)  # a report never changes the archive
+            try:
+                raws = archive.raw_packets()
+            finally:
+                archive.close()
+        except sqlite3.DatabaseError as exc:
+            raise ArchiveError(f"{db}: damaged database: {exc}") from None
         return decoded_telemetry(raws, "archive.sqlite (no tm.bin)")
     return None

@@ -63,10 +63,10 @@ def main() -> None:
         return float(np.interp(obt, obt_axis, t_axis))
 
     # what ground uploaded: every activity of every PUS 11 insert
-    activities: dict[int, pus.ScheduledActivity] = {}
+    activities: dict[int, pus.ScheduledActivity | pus.CaRelativeActivity] = {}
     for raw in pus.split_packets((run / "tc.bin").read_bytes()):
         _, cmd = pus.decode_tc(raw)
-        if isinstance(cmd, pus.InsertActivities):
+        if isinstance(cmd, pus.InsertActivities | pus.InsertCaRelativeActivities):
             for a in cmd.activities:
                 activities[pus.request_id_of(a.tc_packet).seq_count] = a
     # when the OBSW released them
@@ -85,7 +85,8 @@ def main() -> None:
     ground_err, board_err = [], []
     for rid, a in sorted(activities.items(), key=lambda kv: kv[1].release_obt_s):
         _, cmd = pus.decode_tc(a.tc_packet)
-        intended = ca + a.ca_offset_s if a.ca_offset_s is not None else true_of(a.release_obt_s)
+        ca_offset_s = a.ca_offset_s if isinstance(a, pus.CaRelativeActivity) else None
+        intended = ca + ca_offset_s if ca_offset_s is not None else true_of(a.release_obt_s)
         # the scheduler releases at the first tick at or after the tag
         g = true_of(a.release_obt_s)
         g = t_axis[np.searchsorted(t_axis, g - 1e-9)] if g <= t_axis[-1] else g
@@ -95,7 +96,7 @@ def main() -> None:
         if rid in released:
             board_err.append(abs(e_board))
         name = type(cmd).__name__ + (f"({cmd.mode.name})" if isinstance(cmd, pus.SetMode) else "")
-        off = "-" if a.ca_offset_s is None else f"{a.ca_offset_s:+.0f}"
+        off = "-" if ca_offset_s is None else f"{ca_offset_s:+.0f}"
         print(f"{name:<28}{off:>13}{e_ground:>+16.3f}{e_board:>+13.3f}")
     print(f"\n|release error|   median   worst   (over {len(ground_err)} commands; {len(board_err)} released in the run)")
     print(f"ground only     {statistics.median(ground_err):7.3f} {max(ground_err):7.3f} s")

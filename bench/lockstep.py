@@ -1,11 +1,16 @@
-"""Lock-step throughput between two processes over Zenoh, against the raw Zenoh round trips in the same run.
+"""Lock-step throughput between two processes over Zenoh, against the raw Zenoh round trips in the same run, on
+plain TCP and on the secured bus (TLS with mutual authentication and the run's access control).
 
-Starts a responder process, then measures, each as the median of several rounds:
+Starts a responder process on plain TCP, and measures, each as the median of several rounds:
   raw get        session.get on a queryable that echoes (Zenoh's request/reply)
   raw pub/sub    express publisher ping -> echo -> pong (no encoding)
   lock-step      the emulator's own exchange: a StepRequest (typical sensors, no frame) encoded, published,
                  decoded by the responder, answered with a StepReply, decoded, matched by step number
-Prints control periods per second and the ratio of each to the raw get round trip.
+and the same lock-step against two more responders, as the flight software with a run's credentials:
+  lock-step TLS      over TLS with mutual authentication
+  lock-step TLS+ACL  and with the run's access control, as ``flyby run`` does (raw get is refused there)
+The modes take turns in every round. Prints control periods per second, the ratio of each to the raw get round
+trip, and the secured lock-step against plain TCP.
 
     python bench/lockstep.py [--n 3000] [--rounds 5]
 """
@@ -18,11 +23,14 @@ import queue
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
+from contextlib import ExitStack
+from pathlib import Path
 
 import zenoh
 
-from contracts.bus import Keys, free_tcp_port, session_config
+from contracts.bus import Keys, TlsIdentity, access_control, free_tcp_port, session_config
 from contracts.clock import WallClock
 from contracts.messages import SensorData, StepReply, StepRequest, decode, encode
 from contracts.runtime import Attachment
@@ -38,9 +46,22 @@ def request(step: int) -> StepRequest:
                                           wheel_speed_rad_s=(10.0, 20.0, 30.0)))
 
 
-def serve(port: int, seconds: float) -> None:
-    """The responder: echo raw queries and pings, answer StepRequests with StepReplies."""
-    conf = session_config(listen=[f"tcp/127.0.0.1:{port}"])
+MODES = ("plain", "TLS", "TLS+ACL")  # plain TCP; TLS with mutual authentication; and with the run's access control
+
+
+def _conf(role: str, port: int, mode: str, credentials: Path, listen: bool):  # type: ignore[no-untyped-def]
+    """The session configuration of ``role`` in ``mode``."""
+    ep = [f"{'tcp' if mode == 'plain' else 'tls'}/127.0.0.1:{port}"]
+    kw = dict(listen=ep) if listen else dict(connect=ep)
+    if mode == "plain":
+        return session_config(**kw)
+    acl = access_control(KEYS) if mode == "TLS+ACL" else None
+    return session_config(**kw, tls=TlsIdentity.in_folder(credentials, role), acl=acl)
+
+
+def serve(port: int, seconds: float, mode: str, credentials: Path) -> None:
+    """The responder: echo raw queries and pings (plain TCP only), answer StepRequests with StepReplies."""
+    conf = _conf("obsw", port, mode, credentials, listen=True)
     with zenoh.open(conf) as s:
         q = s.declare_queryable(RAW_Q, lambda query: query.reply(query.key_expr, query.payload.to_bytes()))
         pong = s.declare_publisher(RAW_PONG, express=True)
@@ -89,47 +110,65 @@ def rate_lockstep(bus: Attachment, n: int, start: int) -> float:
     return n / (time.perf_counter() - t0)
 
 
+def _responder(mode: str, credentials: Path) -> tuple[subprocess.Popen[bytes], int]:
+    port = free_tcp_port()
+    return subprocess.Popen([sys.executable, __file__, "--serve", str(port), mode, str(credentials)]), port
+
+
 def main() -> None:
-    """Run the benchmark and print its figures."""
+    """Run the benchmark and print its figures; the modes take turns in every round, so load changes hit all."""
+    from flyby.credentials import write_credentials
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=3000, help="round trips per measurement")
     ap.add_argument("--rounds", type=int, default=5, help="measurements per method (median reported)")
     args = ap.parse_args()
-    port = free_tcp_port()
-    child = subprocess.Popen([sys.executable, __file__, "--serve", str(port)])
-    try:
-        time.sleep(1.0)
-        with zenoh.open(session_config(connect=[f"tcp/127.0.0.1:{port}"])) as s:
-            bus = Attachment(s, KEYS, "universe", WallClock(), logging.getLogger("bench"))
-            bus.subscribe(KEYS.reply, StepReply)
-            bus.watch_peers()
-            bus.wait_for_peers(["obsw"], 10.0)
-            payload = encode(request(0))
-            rates: dict[str, list[float]] = {"raw get": [], "raw pub/sub": [], "lock-step": []}
-            rate_lockstep(bus, 200, 0)  # warm-up
+    payload = encode(request(0))
+    rates: dict[str, list[float]] = {"raw get": [], "raw pub/sub": [], **{f"lock-step {m}": [] for m in MODES}}
+    with tempfile.TemporaryDirectory() as tmp, ExitStack() as stack:
+        creds = Path(tmp) / "credentials"
+        write_credentials(creds)
+        children = {m: _responder(m, creds) for m in MODES}
+        try:
+            time.sleep(1.0)
+            sessions, buses = {}, {}
+            for m, (_, port) in children.items():
+                sessions[m] = stack.enter_context(zenoh.open(_conf("universe", port, m, creds, listen=False)))
+                bus = buses[m] = Attachment(sessions[m], KEYS, "universe", WallClock(), logging.getLogger("bench"))
+                bus.subscribe(KEYS.reply, StepReply)
+                bus.watch_peers()
+                bus.wait_for_peers(["obsw"], 10.0)
+                rate_lockstep(bus, 200, 0)  # warm-up
             step = 1000
             for r in range(args.rounds):
-                rates["raw get"].append(rate_raw_get(s, args.n, payload))
-                rates["raw pub/sub"].append(rate_raw_pubsub(s, args.n, payload))
-                rates["lock-step"].append(rate_lockstep(bus, args.n, step))
+                rates["raw get"].append(rate_raw_get(sessions["plain"], args.n, payload))
+                rates["raw pub/sub"].append(rate_raw_pubsub(sessions["plain"], args.n, payload))
+                for m in MODES:
+                    rates[f"lock-step {m}"].append(rate_lockstep(buses[m], args.n, step))
                 step += args.n
                 print(f"round {r + 1}/{args.rounds}: " + ", ".join(f"{k} {v[-1]:,.0f}/s" for k, v in rates.items()),
                       flush=True)
-            med = {k: statistics.median(v) for k, v in rates.items()}
-            print(f"\nmedians over {args.rounds} rounds of {args.n} round trips ({len(payload)}-byte step request):")
-            for k, v in med.items():
-                print(f"  {k:12s} {v:8,.0f} per s   {1e6 / v:6.0f} us per round trip   "
-                      f"time ratio to raw get {med['raw get'] / v:4.2f}x")
-            print(f"target: lock-step >= 2,000 periods/s and within 1.5x of the raw get round trip: "
-                  f"{'MET' if med['lock-step'] >= 2000 and med['raw get'] / med['lock-step'] <= 1.5 else 'NOT MET'}")
-            bus.close()
-    finally:
-        child.terminate()
-        child.wait()
-
+            for bus in buses.values():
+                bus.close()
+        finally:
+            for child, _ in children.values():
+                child.terminate()
+                child.wait()
+    med = {k: statistics.median(v) for k, v in rates.items()}
+    print(f"\nmedians over {args.rounds} rounds of {args.n} round trips ({len(payload)}-byte step request):")
+    for k, v in med.items():
+        print(f"  {k:18s} {v:8,.0f} per s   {1e6 / v:6.0f} us per round trip   "
+              f"time ratio to raw get {med['raw get'] / v:4.2f}x")
+    plain, secured = med["lock-step plain"], med["lock-step TLS+ACL"]
+    print(f"  lock-step time ratio to plain TCP: TLS {plain / med['lock-step TLS']:4.2f}x, "
+          f"TLS with access control {plain / secured:4.2f}x")
+    print(f"target: lock-step >= 2,000 periods/s and within 1.5x of the raw get round trip: "
+          f"{'MET' if plain >= 2000 and med['raw get'] / plain <= 1.5 else 'NOT MET'}")
+    print(f"target: lock-step over TLS with access control >= 2,000 periods/s: "
+          f"{'MET' if secured >= 2000 else 'NOT MET'}")
 
 if __name__ == "__main__":
-    if len(sys.argv) == 3 and sys.argv[1] == "--serve":
-        serve(int(sys.argv[2]), seconds=600.0)
+    if len(sys.argv) == 5 and sys.argv[1] == "--serve":
+        serve(int(sys.argv[2]), 600.0, sys.argv[3], Path(sys.argv[4]))
     else:
         main()

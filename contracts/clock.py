@@ -1,12 +1,14 @@
 """Clocks: the only module that reads the machine's time.
 
-Everything else takes a ``Clock`` as an argument (as trio's ``Clock`` and SimPy's ``Environment`` do), so
-lock-step runs use ``SimClock`` and never depend on how fast the machine is, while real-time runs and
-watchdogs use ``WallClock``.
+Everything else takes a ``Clock`` as an argument (as trio's ``Clock`` and SimPy's ``Environment`` do): real-time
+pacing, bus timeouts and watchdogs use ``WallClock``, and ``SimClock`` stands in for it where only simulated time may
+pass. Lock-step runs read no clock at all: their true time is the universe's step count, so they never depend on
+how fast the machine is.
 """
 
 from __future__ import annotations
 
+import datetime
 import time
 from typing import Protocol
 
@@ -57,6 +59,11 @@ class WallClock:
         dt = t - time.monotonic()
         if dt > 0:
             time.sleep(dt)
+
+
+def utc_now() -> datetime.datetime:
+    """The machine's UTC now (for certificate validity)."""
+    return datetime.datetime.now(datetime.timezone.utc)
 
 
 def utc_stamp() -> str:

@@ -9,11 +9,14 @@ table and the XTCE export (``flyby dictionary``).
 
 Mission choices that are not a flat table: a verification report's subtype is its stage (+1 on failure) and only
 a failure carries a code and a reason; an event report's subtype is its severity and its first u16 the event id;
-the selected/all pairs of service 11 (7/15, 9/16, 12/17) differ by the request ids alone; a scheduled activity
-carries, as a mission extension, an optional offset from closest approach so the OBSW can re-anchor it when a new
-C/A estimate is accepted (its absolute release OBT is always present). The filter-based subtypes of service 11
-(6, 8, 11, 14) are not implemented: ground always names activities by request id. A time shift is an IEEE float64
-in seconds (exact, unlike a CUC relative time on the 2^-16 s grid).
+the selected/all pairs of service 11 (7/15, 9/16, 12/17) differ by the request ids alone. TC[11,4] has the layout
+of ECSS-E-ST-70-41C (N, then N times a release time and a complete TC packet; no sub-schedule or group ids, and N
+is a u16 as the mission chooses); an activity that follows the on-board C/A estimate travels in the mission
+subservice TC[200,8], which adds its offset from closest approach so the OBSW can re-anchor it when a new C/A
+estimate is accepted. The filter-based subtypes of service 11 (6, 8, 11, 14) are not implemented: ground always
+names activities by request id. A time shift is an IEEE float64 in seconds (exact, unlike a CUC relative time on
+the 2^-16 s grid). A radiated TC travels inside a security envelope (``contracts.sdls``) that is no part of the
+packet.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ from contracts.packet import (
     field,
 )
 from contracts.packet_errors import MAX_APID, MAX_SEQ_COUNT, PacketError, RequestId
+from contracts.task import TASK_COUNT, Task
 from contracts.wire import (
     F32,
     F64,
@@ -52,22 +56,49 @@ from contracts.wire import (
     UINT8,
     EmbeddedPacket,
     Finite,
+    OctetString,
     Mode8,
     ObtS,
     Rid,
+    Task8,
     Text,
     UnitVector,
     packet_len,
 )
 
+SERVICE_NAMES = {1: "request verification", 3: "housekeeping", 5: "event reporting", 9: "time management",
+                 11: "time-based scheduling", 17: "test", 200: "mission: flyby navigation"}
+"""The PUS services of the mission (ECSS-E-ST-70-41C names; 200 is the mission's own)."""
 HK_SID = 1
 HK_WHEEL_SLOTS = 4
 MISSION_SERVICE = 200
 TC_SECONDARY_HEADER_LEN = 5
+WRAPPED_KEY_LEN = 40  # a 256-bit key wrapped by AES key wrap (RFC 3394): 8 octets longer
 CRC_LEN = 2
 MAX_LIST = 0xFFFF
 UNIT_TOLERANCE = 1e-9
 ORTHOGONAL_TOLERANCE = 1e-6
+
+
+class AckFlag(IntEnum):
+    """The acknowledgement flags of a TC secondary header (ECSS-E-ST-70-41C: bit 3, the lowest, asks for the
+    acceptance success report, bit 2 for start, bit 1 for progress, bit 0, the highest, for completion)."""
+
+    ACCEPTANCE = 0b0001
+    START = 0b0010
+    PROGRESS = 0b0100
+    COMPLETION = 0b1000
+
+
+ALL_ACKS = 0b1111
+
+
+class TimeReferenceStatus(IntEnum):
+    """The 4-bit spacecraft time reference status of a TM secondary header, as this mission defines it."""
+
+    UNKNOWN = 0  # never sent by this OBSW: the value of a field left unset
+    FREE_RUNNING = 1  # OBT counts the on-board oscillator, continuous with the previous control period
+    STEPPED = 2  # OBT stepped (a commanded adjustment or a detected jump) at this control period
 
 
 class Severity(IntEnum):
@@ -97,6 +128,9 @@ class EventId(IntEnum):
     FAULT = 5
     COMMAND_REJECTED = 6
     CLOCK_JUMP = 7
+    SECURITY_REJECTION = 8
+    TASK_OVERRUN = 9
+    FRAME_OVERRUN = 10
 
 
 # Service 17 ---------------------------------------------------------------------------------------------
@@ -159,12 +193,18 @@ class Verification(Report, service=1, subtypes={1: _FAILURE, 2: (), 3: _FAILURE,
 _NAN = math.nan
 
 
+_PER_TASK = tuple[(F32,) * TASK_COUNT]  # type: ignore[misc]
+_NO_TIMES = (0.0,) * TASK_COUNT
+_TASKS = " ".join(t.name for t in Task)
+
+
 class Housekeeping(Report, service=3, subtype=25):
     """Housekeeping parameter report of the navigation chain; absent values are NaN with their flag cleared."""
 
     sid: ClassVar[Constant] = Constant(UINT16, HK_SID, "structure id")
     mode: Mode8 = field("current on-board mode")
-    flags: ClassVar[Validity] = Validity("validity: bit0 pointing error, bit1 best trajectory, bit2 best-grid MSE")
+    flags: ClassVar[Validity] = Validity("validity: bit0 pointing error, bit1 best trajectory, bit2 best-grid MSE, "
+                                         "bit3 exposure-to-centroid latency, bit4 centroid-to-torque latency")
     wheel_count: ClassVar[Count] = Count(UINT8, 1, HK_WHEEL_SLOTS, "number of wheels in use")
     q: tuple[F32, F32, F32, F32] = field("estimated attitude body->inertial, scalar-last x y z w")
     rate_rad_s: tuple[F32, F32, F32] = field("estimated body rate, x y z", "rad/s")
@@ -177,6 +217,24 @@ class Housekeeping(Report, service=3, subtype=25):
     best_ca_obt_s: F64 | None = field("C/A time of the best trajectory, OBT", "s", default=None, bit=1)
     best_ca_distance_km: F32 | None = field("C/A distance of the best trajectory", "km", default=None, bit=1)
     best_mse_rad2: F32 | None = field("best-grid mean square line-of-sight error", "rad^2", default=None, bit=2)
+    tc_rejected_auth: U16 = field("uplinked TCs refused for a missing or wrong MAC (saturates)", default=0)
+    tc_rejected_spi: U16 = field("uplinked TCs refused for an unknown security parameter index (saturates)",
+                                 default=0)
+    tc_rejected_replay: U16 = field("uplinked TCs refused for an anti-replay sequence number at or below the last "
+                                    "accepted one (saturates)", default=0)
+    task_time_last_s: _PER_TASK = field("execution time of each task's last run, in task order: " + _TASKS, "s",
+                                        default=_NO_TIMES)
+    task_time_max_s: _PER_TASK = field("longest execution time of each task since start, in task order: " + _TASKS,
+                                       "s", default=_NO_TIMES)
+    exposure_to_centroid_s: F32 | None = field("from the exposure of the last frame the control used to its line of "
+                                               "sight being available on board", "s", default=None, bit=3)
+    centroid_to_torque_s: F32 | None = field("from that line of sight being available to the end of the control "
+                                             "task that used it (the torques' update)", "s", default=None, bit=4)
+    task_overruns: U32 = field("task runs that finished after their slot's deadline, since start", default=0)
+    frame_overruns: U32 = field("minor frames whose work was still running at the next tick, since start",
+                                default=0)
+    skipped_releases: U32 = field("task releases skipped because the processor was busy past the slot's deadline, "
+                                  "since start", default=0)
 
     @model_validator(mode="after")
     def _consistent(self) -> Housekeeping:
@@ -274,12 +332,44 @@ class ClockJumpEvent(EventReport):
     step_s: Finite = field("OBT step beyond the control period (negative: backwards)", "s")
 
 
+class TaskOverrunEvent(EventReport):
+    """A task finished after its slot's deadline; raised on the first of a run of overruns of that task (the
+    housekeeping counts every one)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.TASK_OVERRUN
+    severity: Severity = _severity(Severity.MEDIUM)
+    task: Task8 = field("the task that overran")
+    minor_frame: U8 = field("its minor frame in the major frame")
+    execution_s: F32 = field("its execution time", "s", ge=0)
+    late_s: F32 = field("how long after its deadline it finished", "s", ge=0)
+
+
+class FrameOverrunEvent(EventReport):
+    """The work of a minor frame was still running at the next tick; raised on the first of a run of such frames
+    (the housekeeping counts every one)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.FRAME_OVERRUN
+    severity: Severity = _severity(Severity.MEDIUM)
+    minor_frame: U8 = field("the minor frame in the major frame")
+    late_s: F32 = field("how long after the next tick its work ended", "s", ge=0)
+
+
 class CommandRejectedEvent(EventReport):
     """A TC was rejected (its service 1 failure report carries the reason text)."""
 
     EVENT_ID: ClassVar[EventId] = EventId.COMMAND_REJECTED
     severity: Severity = _severity(Severity.LOW)
     request_id: Rid = field("the rejected TC")
+    failure_code: U16 = field("service 1 failure code of the rejection")
+
+
+class TcSecurityRejectedEvent(EventReport):
+    """An uplinked TC failed the space data link security check (CCSDS 355.0-B authentication) and was dropped."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.SECURITY_REJECTION
+    severity: Severity = _severity(Severity.HIGH)
+    spi: U16 = field("security parameter index the TC named (0 when too short to hold one)")
+    arsn: U32 = field("anti-replay sequence number the TC carried (0 when too short to hold one)")
     failure_code: U16 = field("service 1 failure code of the rejection")
 
 
@@ -316,20 +406,36 @@ def _check_tc_packet(packet: bytes) -> bytes:
 TcPacket = Annotated[bytes, AfterValidator(_check_tc_packet), EmbeddedPacket()]
 
 
-class ScheduledActivity(Record):
-    """One entry of the time-based schedule: a complete TC packet and its release OBT."""
+def _request_id(packet: bytes) -> RequestId:
+    """The request id of a TC packet: APID and sequence count from its first 4 octets."""
+    w0, w1 = struct.unpack_from(">HH", packet)
+    return RequestId(apid=w0 & MAX_APID, seq_count=w1 & MAX_SEQ_COUNT)
 
-    tag_kind: ClassVar[Validity] = Validity("tag kind: 0 absolute, 1 C/A-relative (the C/A offset follows)", omit=True)
+
+class ScheduledActivity(Record):
+    """One entry of the time-based schedule (ECSS-E-ST-70-41C): its release OBT and a complete TC packet."""
+
     release_obt_s: ObtS = field("release time, OBT (carried on the 2^-16 s CUC grid)", "s")
-    ca_offset_s: Finite | None = field("offset of the release from closest approach, if the activity follows the "
-                                       "C/A estimate", "s", default=None, bit=0)
     tc_packet: TcPacket = field("the complete TC packet")
 
     @property
     def request_id(self) -> RequestId:
         """The request id of the wrapped TC."""
-        w0, w1 = struct.unpack_from(">HH", self.tc_packet)
-        return RequestId(apid=w0 & MAX_APID, seq_count=w1 & MAX_SEQ_COUNT)
+        return _request_id(self.tc_packet)
+
+
+class CaRelativeActivity(Record):
+    """A schedule entry that follows the on-board C/A estimate: its offset from closest approach, the release OBT
+    ground computed (used until the board holds a C/A estimate), and a complete TC packet."""
+
+    ca_offset_s: Finite = field("offset of the release from closest approach", "s")
+    release_obt_s: ObtS = field("release time by ground's C/A, OBT (carried on the 2^-16 s CUC grid)", "s")
+    tc_packet: TcPacket = field("the complete TC packet")
+
+    @property
+    def request_id(self) -> RequestId:
+        """The request id of the wrapped TC."""
+        return _request_id(self.tc_packet)
 
 
 class ScheduleSummaryEntry(Record):
@@ -484,6 +590,23 @@ class AdjustObt(Telecommand, service=MISSION_SERVICE, subtype=7,
     """Step the on-board clock by ``delta_s`` (a commanded time correction; reported as a clock jump)."""
 
     delta_s: Finite = field("OBT step (negative: backwards)", "s", ge=-86400.0, le=86400.0)
+
+
+class InsertCaRelativeActivities(Telecommand, service=MISSION_SERVICE, subtype=8):
+    """Insert activities that follow the on-board C/A estimate into the time-based schedule (the mission's
+    extension of TC[11,4]: each entry adds its offset from closest approach)."""
+
+    activities: tuple[CaRelativeActivity, ...] = field("the activities", min_length=1, max_length=MAX_LIST)
+
+
+class RekeySecurityAssociation(Telecommand, service=MISSION_SERVICE, subtype=9):
+    """Load a new TC authentication key (CCSDS 355.0-B over-the-air rekeying): a new security association, its key
+    wrapped (AES key wrap, RFC 3394) under a key derived from the association that authenticates this TC. The board
+    accepts both until the first TC under the new one, then retires the old one."""
+
+    spi: U16 = field("security parameter index of the new association", ge=1)
+    wrapped_key: Annotated[bytes, OctetString(WRAPPED_KEY_LEN)] = field(
+        "the new 256-bit key, wrapped", min_length=WRAPPED_KEY_LEN, max_length=WRAPPED_KEY_LEN)
 
 
 class NavigationReport(Report, service=MISSION_SERVICE, subtype=130):

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from contracts.cuc import CUC_LEN
-from contracts.dictionary import DICTIONARY, Dictionary, EventReport, Verification
+from contracts.dictionary import DICTIONARY, SERVICE_NAMES, Dictionary, EventReport, Verification
 from contracts.packet import Constant, Count, Item, Packet, Record, RecordWire, Validity
 from contracts.pus import CRC_LEN, PRIMARY_HEADER_LEN, TC_SECONDARY_HEADER_LEN, TM_SECONDARY_HEADER_LEN
 from contracts.wire import MAX_TEXT_OCTETS, CountedList, EnumCode, TextWire
@@ -107,6 +107,11 @@ def markdown(d: Dictionary = DICTIONARY) -> str:
     ]
     for p in d.packets:
         out.append(f"| {p.KIND} | {packet_id(p)} | {p.__name__} | {_first_line(p)} |")
+    out += ["", "## Services", "", "| service | name | TC subtypes | TM subtypes |", "|---|---|---|---|"]
+    for service in sorted(d.services("TC") | d.services("TM")):
+        subtypes = [", ".join(str(k) for k in sorted({s for p in d.packets if p.KIND == kind and p.SERVICE == service
+                                                     for s in p.SUBTYPES})) for kind in ("TC", "TM")]
+        out.append(f"| {service} | {SERVICE_NAMES.get(service, '')} | {subtypes[0]} | {subtypes[1]} |")
     for p in d.packets:
         out += ["", f"## {packet_id(p)} {p.__name__}", "", _doc(p)]
         notes = []

@@ -33,6 +33,9 @@ class FailureCode(IntEnum):
     UNKNOWN_SUBSERVICE = 0x0006
     BAD_ARGUMENT = 0x0007
     WRONG_APID = 0x0008
+    UNAUTHENTICATED = 0x0009  # no security header and trailer, or a MAC that does not verify
+    UNKNOWN_SPI = 0x000A  # a security parameter index with no security association on board
+    REPLAYED = 0x000B  # an anti-replay sequence number at or below the last one accepted
 
 
 class RequestId(Frozen):

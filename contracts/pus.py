@@ -19,11 +19,19 @@ from typing import TypeAlias, Union
 
 from pydantic import Field
 from spacepackets.ecss.tc import InvalidTcCrc16Error, PusTc
-from spacepackets.ecss.tm import InvalidTmCrc16Error, PusTm
+from spacepackets.ecss.tm import InvalidTmCrc16Error, MiscParams, PusTm
 
 from contracts.cuc import CUC_LEN, CucError, cuc_decode, cuc_encode
 from contracts.dictionary import *  # noqa: F403  (the facade: callers write pus.SetMode, pus.Housekeeping...)
-from contracts.dictionary import CRC_LEN, DICTIONARY, TC_SECONDARY_HEADER_LEN, Housekeeping, Severity
+from contracts.dictionary import (
+    ALL_ACKS,
+    CRC_LEN,
+    DICTIONARY,
+    TC_SECONDARY_HEADER_LEN,
+    Housekeeping,
+    Severity,
+    TimeReferenceStatus,
+)
 from contracts.model import Frozen
 from contracts.packet import Packet
 from contracts.packet_errors import (
@@ -46,7 +54,7 @@ from contracts.wire import packet_len as _packet_len
 TM_SECONDARY_HEADER_LEN = 7 + CUC_LEN
 SEQ_COUNT_MODULO = MAX_SEQ_COUNT + 1
 MAX_PACKET_LEN = PRIMARY_HEADER_LEN + 0x10000
-HK_SIZE = sum(it.wire.octets or 0 for it in Housekeeping.LAYOUT)  # a fixed layout: 85 octets
+HK_SIZE = sum(it.wire.octets or 0 for it in Housekeeping.LAYOUT)  # a fixed layout: 199 octets
 
 # Unions of the declared classes, for annotations and isinstance checks.
 TcCommand: TypeAlias = Union[tuple(p for p in DICTIONARY.packets if p.KIND == "TC")]  # type: ignore[valid-type]
@@ -86,8 +94,9 @@ class TmHeader(Frozen):
     service: int
     subservice: int
     obt_s: float = Field(description="OBT time stamp of the packet, s")
-    msg_counter: int = Field(description="PUS message type counter (16 bit)")
+    msg_counter: int = Field(description="PUS message type counter (16 bit, one per message type and destination)")
     destination_id: int
+    time_status: int = Field(description="spacecraft time reference status (4 bit, ``TimeReferenceStatus``)")
 
 
 # -------------------------------------------------------------------------------------------- encode/decode
@@ -101,7 +110,7 @@ def _check_ids(apid: int, seq: int) -> None:
         raise BadArgument("seq", f"{seq} is outside [0, {MAX_SEQ_COUNT}] (wrap it modulo {SEQ_COUNT_MODULO})")
 
 
-def encode_tc(cmd: TcCommand, apid: int, seq: int, *, source_id: int = 0, ack_flags: int = 0b1111) -> bytes:
+def encode_tc(cmd: TcCommand, apid: int, seq: int, *, source_id: int = 0, ack_flags: int = ALL_ACKS) -> bytes:
     """Build the TC packet of ``cmd`` addressed to ``apid`` with sequence count ``seq``."""
     if not _declared(cmd, "TC"):
         raise TypeError(f"{type(cmd).__name__} is not a telecommand of this mission")
@@ -122,14 +131,20 @@ def encode_tc(cmd: TcCommand, apid: int, seq: int, *, source_id: int = 0, ack_fl
 
 
 def encode_tm(
-    report: TmReport, apid: int, seq: int, obt_s: float, msg_counter: int, *, destination_id: int = 0
+    report: TmReport, apid: int, seq: int, obt_s: float, msg_counter: int, *, destination_id: int = 0,
+    time_status: int = TimeReferenceStatus.FREE_RUNNING,
 ) -> bytes:
-    """Build the TM packet of ``report`` from ``apid``, stamped ``obt_s`` (OBT, s) as CUC."""
+    """Build the TM packet of ``report`` from ``apid`` to ``destination_id``, stamped ``obt_s`` (OBT, s) as CUC with
+    the spacecraft time reference status ``time_status``."""
     if not _declared(report, "TM"):
         raise TypeError(f"{type(report).__name__} is not a telemetry report of this mission")
     _check_ids(apid, seq)
     if not 0 <= msg_counter <= 0xFFFF:
         raise BadArgument("msg_counter", f"{msg_counter} is outside [0, 65535] (wrap it modulo 65536)")
+    if not 0 <= destination_id <= 0xFFFF:
+        raise BadArgument("destination_id", f"{destination_id} is outside [0, 65535]")
+    if not 0 <= time_status <= 0xF:
+        raise BadArgument("time_status", f"{time_status} does not fit the 4-bit time reference status")
     data = report.app_data()
     if PRIMARY_HEADER_LEN + TM_SECONDARY_HEADER_LEN + len(data) + CRC_LEN > MAX_PACKET_LEN:
         raise BadArgument(type(report).__name__, f"{len(data)} octets of source data do not fit one packet")
@@ -142,6 +157,7 @@ def encode_tm(
         seq_count=seq,
         message_counter=msg_counter,
         destination_id=destination_id,
+        misc_params=MiscParams(spacecraft_time_ref=time_status),
     )
     return bytes(tm.pack())
 
@@ -249,6 +265,7 @@ def decode_tm(data: bytes) -> tuple[TmHeader, TmReport]:
         obt_s=obt_s,
         msg_counter=sec.message_counter,
         destination_id=sec.dest_id,
+        time_status=sec.spacecraft_time_ref,
     )
     return header, _payload("TM", header.service, header.subservice, bytes(tm.source_data), None)
 
@@ -267,6 +284,22 @@ def split_packets(stream: bytes) -> list[bytes]:
         out.append(bytes(stream[pos : pos + size]))
         pos += size
     return out
+
+
+def complete_packets(stream: bytes) -> tuple[list[bytes], int]:
+    """Cut a stream of concatenated space packets; return the packets and the octets of an incomplete last one.
+
+    Like ``split_packets``, but a stream cut short (a node killed mid-write) keeps every complete packet.
+    """
+    out: list[bytes] = []
+    pos, n = 0, len(stream)
+    while n - pos >= PRIMARY_HEADER_LEN:
+        size = _packet_len(stream, pos)
+        if pos + size > n:
+            break
+        out.append(bytes(stream[pos : pos + size]))
+        pos += size
+    return out, n - pos
 
 
 def request_id_of(packet: bytes) -> RequestId:

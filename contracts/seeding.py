@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-STREAMS = ("nominal", "sensors", "camera", "oscillator", "initial")
+# new names go last: a stream's seed follows from its position, so appending keeps every existing stream
+STREAMS = ("nominal", "sensors", "camera", "oscillator", "initial", "cosmic_rays", "dark_frame")
 
 
 def rng_streams(seed: int) -> dict[str, np.random.Generator]:

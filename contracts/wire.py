@@ -17,6 +17,7 @@ from pydantic import AfterValidator, Field
 from contracts.cuc import CUC_LEN, MAX_OBT_S, CucError, cuc_decode, cuc_encode
 from contracts.mode import Mode, ModeValue
 from contracts.packet_errors import BadArgument, RequestId
+from contracts.task import Task, TaskValue
 
 PRIMARY_HEADER_LEN = 6
 MAX_TEXT_OCTETS = 255
@@ -235,6 +236,31 @@ class EmbeddedPacket(WireType):
 
 
 @dataclass(frozen=True)
+class OctetString(WireType):
+    """A fixed number of octets, carried as they are (a wrapped key)."""
+
+    n: int
+
+    @property
+    def label(self) -> str:  # type: ignore[override]
+        """E.g. 40 octets."""
+        return f"{self.n} octets"
+
+    @property
+    def octets(self) -> int:  # type: ignore[override]
+        """Size in octets."""
+        return self.n
+
+    def encode(self, value: Any) -> bytes:
+        """The octets."""
+        return bytes(value)
+
+    def decode(self, r: Reader, field: str) -> Any:
+        """``n`` octets."""
+        return r.raw(self.n, field)
+
+
+@dataclass(frozen=True)
 class Vector(WireType):
     """A fixed number of values of one wire type (a tuple)."""
 
@@ -350,3 +376,4 @@ ObtS = Annotated[float, Field(ge=0.0, le=MAX_OBT_S), CucWire()]
 Rid = Annotated[RequestId, RequestIdWire()]
 UnitVector = tuple[Finite, Finite, Finite]
 Mode8 = Annotated[ModeValue, EnumCode(Mode, UINT8)]
+Task8 = Annotated[TaskValue, EnumCode(Task, UINT8)]

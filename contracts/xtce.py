@@ -38,7 +38,7 @@ from yamcs.pymdb import (
 )
 
 from contracts.cuc import COARSE_OCTETS, FINE_OCTETS, P_FIELD
-from contracts.dictionary import DICTIONARY, Dictionary, EventReport
+from contracts.dictionary import DICTIONARY, Dictionary, EventReport, TimeReferenceStatus
 from contracts.packet import Constant, Item, Packet, Record, RecordWire, Validity
 from contracts.wire import (
     MAX_TEXT_OCTETS,
@@ -66,11 +66,12 @@ PRIMARY_HEADER = (
 )
 PUS_TM_HEADER = (
     ("pus_version", 4, "PUS version number (2: PUS-C)"),
-    ("time_reference_status", 4, "spacecraft time reference status"),
+    ("time_reference_status", 4, "spacecraft time reference status: "
+     + ", ".join(f"{m.value} {m.name}" for m in TimeReferenceStatus)),
     ("service", 8, "service type"),
     ("subtype", 8, "message subtype"),
     ("message_counter", 16, "message type counter"),
-    ("destination_id", 16, "destination identifier"),
+    ("destination_id", 16, "destination identifier: the source id of the TC a report answers, else the ground's"),
 )
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
+from contracts.steplog import FRAME_KEEPING
 from scenario.model import Scenario, load_run_inputs, timeline_checks
 
 
@@ -46,7 +47,31 @@ def cmd_run(args: argparse.Namespace) -> int:
     scenario = _load_or_report(args.scenario)
     if scenario is None:
         return EXIT_CONFIG
-    return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level)
+    if args.keys is not None:
+        from contracts.sdls import KeyFileError, load_key_file
+
+        try:
+            load_key_file(args.keys)
+        except KeyFileError as exc:
+            print(f"flyby run: --keys: {exc}", file=sys.stderr)
+            return EXIT_CONFIG
+    return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level,
+                  insecure=args.insecure, tc_keys=args.keys, record_frames=args.record_frames)
+
+
+def cmd_credentials(args: argparse.Namespace) -> int:
+    """Write a set of credentials for nodes started by hand, possibly on separate hosts."""
+    from contracts.sdls import KeyFileError
+    from flyby.credentials import write_credentials
+
+    try:
+        write_credentials(args.folder, tc_keys=args.keys, ca_name=f"flyby CA {args.folder.name}")
+    except (OSError, KeyFileError) as exc:
+        print(f"flyby credentials: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+    print(f"{args.folder}: ca.pem, <role>.pem and <role>.key for universe, obsw, ground, operator, launcher, and "
+          "tc-keys.json; copy to each host only its own files (see the README)")
+    return 0
 
 
 def cmd_render(args: argparse.Namespace) -> int:
@@ -124,7 +149,20 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", type=Path, default=None, help="run folder (default runs/<scenario>-<UTC stamp>)")
     r.add_argument("--realtime", action="store_true", help="pace the universe to the wall clock")
     r.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    r.add_argument("--keys", type=Path, default=None, metavar="FILE",
+                   help="telecommand key file to use (mode 0600; default: fresh keys for this run)")
+    r.add_argument("--insecure", action="store_true",
+                   help="plain-TCP bus without TLS or access control, for debugging (prints a warning)")
+    r.add_argument("--record-frames", choices=FRAME_KEEPING, default=FRAME_KEEPING[0],
+                   help="how the step record (obsw_steps.rec) keeps camera frames: by reference (default: a digest, "
+                   "the replay renders them again from the scenario and the truth) or raw (the pixels, about 0.55 MB "
+                   "a frame; replays with a build whose universe renders differently)")
     r.set_defaults(func=cmd_run)
+    cr = sub.add_parser("credentials", help="write a CA, certificates and TC keys for nodes started by hand")
+    cr.add_argument("folder", type=Path, help="a new or empty folder (made private, 0700)")
+    cr.add_argument("--keys", type=Path, default=None, metavar="FILE", help="copy this TC key file instead of "
+                    "making fresh keys")
+    cr.set_defaults(func=cmd_credentials)
     v = sub.add_parser("validate", help="check scenario files and print every error with its path")
     v.add_argument("files", type=Path, nargs="+")
     v.set_defaults(func=cmd_validate)
@@ -150,9 +188,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_tm_arguments(sub.add_parser("tm", help="list, print or export (CSV) archived telemetry parameters of a run"))
     from flyby.console import add_parser as add_ground_console
     from flyby.montecarlo.cli import add_parser as add_mc
+    from flyby.replay import add_parser as add_replay
 
     add_ground_console(sub)
     add_mc(sub)
+    add_replay(sub)
     return p
 
 

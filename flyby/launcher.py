@@ -1,7 +1,9 @@
 """``flyby run``: start the three nodes as processes on loopback, show progress, and make sure none outlives the run.
 
 Each node gets its own free TCP port; the universe listens, the OBSW connects to it, ground connects to both, and
-the launcher joins the bus only to watch status and shutdown messages. Children die with the launcher
+the launcher joins the bus only to watch status and shutdown messages. The bus runs over TLS with mutual
+authentication and access control, with credentials made for the run in a private temporary folder (deleted at
+the end; ``flyby.credentials``), unless ``insecure`` asks for plain TCP. Children die with the launcher
 (``PR_SET_PDEATHSIG`` on Linux) and are terminated, then killed, if they do not stop on their own, so no orphan
 is left behind whatever happens.
 """
@@ -24,12 +26,15 @@ from typing import IO
 
 import zenoh
 
-from contracts.bus import NODES, Keys, free_tcp_port, session_config
+from contracts.bus import LAUNCHER, NODES, Keys, free_tcp_port
+from flyby.credentials import TC_KEY_FILE, run_credentials
+from flyby.nodecli import bus_settings
 from contracts.clock import WallClock, utc_stamp
 from contracts.errors import DecodeError
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_PEER
 from contracts.messages import Shutdown, Status, decode
 from contracts.runtime import Attachment
+from contracts.steplog import FrameKeeping
 from scenario.model import Scenario
 
 
@@ -64,14 +69,24 @@ def run_folder(scenario: Scenario, out: Path | None) -> Path:
     return path
 
 
+def endpoints(ports: dict[str, int], secured: bool) -> dict[str, str]:
+    """The loopback endpoint of each node."""
+    return {n: f"{'tls' if secured else 'tcp'}/127.0.0.1:{ports[n]}" for n in NODES}
+
+
 def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], realtime: bool,
-                  log_level: str, python: str = sys.executable) -> dict[str, list[str]]:
-    """The command line of each node: universe listens, obsw connects to it, ground connects to both."""
-    ep = {n: f"tcp/127.0.0.1:{ports[n]}" for n in NODES}
-    common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level]
+                  log_level: str, credentials: Path | None, python: str = sys.executable,
+                  record_frames: FrameKeeping = "reference") -> dict[str, list[str]]:
+    """The command line of each node: universe listens, obsw connects to it, ground connects to both; over TLS with
+    the identities in ``credentials``, or plain TCP when None; the OBSW's step record keeps camera frames as
+    ``record_frames`` says."""
+    ep = endpoints(ports, credentials is not None)
+    security = ["--credentials", str(credentials)] if credentials is not None else ["--insecure"]
+    common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level, *security]
     return {
         "universe": [python, "-m", "universe", *common, "--listen", ep["universe"], *(["--realtime"] if realtime else [])],
-        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"]],
+        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"],
+                 "--record-frames", record_frames],
         "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
                    "--connect", ep["obsw"]],
     }
@@ -89,21 +104,38 @@ def _progress_line(watch: Watch, end_s: float) -> str:
 
 
 def launch(config: Path, scenario: Scenario, out: Path | None = None, realtime: bool = False,
-           log_level: str = "INFO", stream: IO[str] = sys.stdout) -> int:
-    """Run the scenario with the three nodes as local processes; return an exit code (0 = success)."""
+           log_level: str = "INFO", stream: IO[str] = sys.stdout, insecure: bool = False,
+           tc_keys: Path | None = None, record_frames: FrameKeeping = "reference") -> int:
+    """Run the scenario with the three nodes as local processes; return an exit code (0 = success).
+
+    The bus is secured with fresh credentials (and ``tc_keys``, a TC key file, instead of fresh TC keys) unless
+    ``insecure``; ``record_frames``: how the OBSW's step record keeps camera frames (``contracts.steplog``)."""
+    if insecure:
+        with run_credentials(tc_keys) as credentials:  # the TCs stay authenticated even on a plain bus
+            return _launch(config, scenario, out, realtime, log_level, stream, None, credentials, record_frames)
+    with run_credentials(tc_keys) as credentials:
+        return _launch(config, scenario, out, realtime, log_level, stream, credentials, credentials, record_frames)
+
+
+def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, log_level: str, stream: IO[str],
+            credentials: Path | None, key_folder: Path, record_frames: FrameKeeping = "reference") -> int:
     folder = run_folder(scenario, out)
     shutil.copyfile(config, folder / "scenario.yaml")
     run_id = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{folder.name}-{os.getpid()}")
     keys = Keys(run_id)
     ports = {n: free_tcp_port() for n in NODES}
-    cmds = node_commands(config, run_id, folder, ports, realtime, log_level)
+    cmds = node_commands(config, run_id, folder, ports, realtime, log_level, credentials, record_frames=record_frames)
+    for node in ("obsw", "ground"):
+        cmds[node] += ["--tc-keys", str(key_folder / TC_KEY_FILE)]
+    ep = endpoints(ports, credentials is not None)
     print(f"run folder: {folder}", file=stream)
-    print(f"run id {run_id}; operator console: flyby ground --connect tcp/127.0.0.1:{ports['ground']} "
+    security = f"--credentials {credentials}" if credentials is not None else "--insecure"
+    print(f"run id {run_id}; operator console: flyby ground --connect {ep['ground']} {security} "
           f"--run-id {run_id} --watch", file=stream)
     watch = Watch()
     clock = WallClock()
-    conf = session_config(connect=[f"tcp/127.0.0.1:{ports[n]}" for n in NODES],
-                          multicast_scouting=scenario.bus.multicast_scouting)
+    conf = bus_settings(LAUNCHER, [], list(ep.values()), run_id, credentials, credentials is None,
+                        scenario.bus.multicast_scouting)
     procs: dict[str, subprocess.Popen[bytes]] = {}
     logs: dict[str, IO[bytes]] = {}
     interrupted = False

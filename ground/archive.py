@@ -12,6 +12,8 @@ This module is an adapter (it owns the disk); decoding is ``contracts.pus``. Tab
   as NULL (SQLite has no NaN). Indexed on (name, obt_s).
 - ``sequence_anomalies``: per APID, gaps in the 14-bit sequence count (with the number of packets missing),
   duplicates and late (out-of-order) packets.
+- ``alarms``: the ground's security alarms (a report about a TC it never sent, a TC the spacecraft refused), each
+  with its receipt time and the packet that raised it.
 
 Sequence rule: with ``d = (seq - (last + 1)) mod 16384``, ``d == 0`` is in order; ``0 < d < 8192`` is a gap of ``d``
 packets; ``d >= 8192`` is a late or duplicate packet if its OBT is not after the last one's, otherwise a gap of
@@ -72,6 +74,11 @@ CREATE TABLE IF NOT EXISTS sequence_anomalies (
     received_seq INTEGER NOT NULL,
     missing INTEGER NOT NULL,
     receipt_utc_s REAL NOT NULL
+);
+CREATE TABLE IF NOT EXISTS alarms (
+    packet_id INTEGER REFERENCES packets (id),
+    receipt_utc_s REAL NOT NULL,
+    text TEXT NOT NULL
 );
 """
 _HALF_WINDOW = SEQ_COUNT_MODULO // 2
@@ -173,14 +180,54 @@ class Archive:
         self._packets: list[tuple[Any, ...]] = []
         self._params: list[tuple[int, str, float, Value]] = []
         self._anomalies: list[tuple[Any, ...]] = []
+        self._alarms: list[tuple[int | None, float, str]] = []
         self._raw: list[bytes] = []
         self._closed = False
+        self._read_only = False
+        self.damage: str | None = None  # set by a reader that had to fall back on tm.bin
+
+    @classmethod
+    def read_only(cls, path: str | Path) -> Archive:
+        """Open an existing archive for reading only: nothing is ever written beside it (no journal, no -shm file),
+        and a file that is not an intact archive raises ArchiveError saying what is wrong with it."""
+        self = cls.__new__(cls)
+        self.path = Path(path)
+        self.tm_bin_path = self.path.with_name("tm.bin")
+        self.batch_size = 1
+        if not self.path.is_file():
+            raise ArchiveError(f"{self.path}: no such file")
+        if self.path.stat().st_size == 0:
+            raise ArchiveError(f"{self.path}: empty file (0 octets): the ground node never wrote it")
+        # immutable: SQLite neither locks nor creates a -wal/-shm file, so the run folder is left as it was
+        self._db = sqlite3.connect(f"file:{self.path.resolve()}?mode=ro&immutable=1", uri=True)
+        try:
+            tables = {n for (n,) in self._db.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+            missing = {"packets", "parameters", "sequence_anomalies"} - tables
+            if missing:
+                raise ArchiveError(f"{self.path}: not a telemetry archive (no table {', '.join(sorted(missing))})")
+            self._db.execute("SELECT COUNT(*) FROM packets").fetchone()
+        except sqlite3.DatabaseError as exc:
+            self._db.close()
+            raise ArchiveError(f"{self.path}: damaged database: {exc}") from None
+        except ArchiveError:
+            self._db.close()
+            raise
+        self._bin = None
+        self._next_id = 0
+        self._last = {}
+        self._packets, self._params, self._anomalies, self._raw, self._alarms = [], [], [], [], []
+        self._closed = False
+        self._read_only = True
+        self.damage = None
+        return self
 
     # ------------------------------------------------------------------------------------------------ writing
 
     def store(self, raw: bytes, receipt_utc_s: float) -> StoreResult:
         """Archive one TM packet received at ``receipt_utc_s`` (UTC s); bad packets are kept raw with their error."""
         self._check_open()
+        if self._read_only:
+            raise ArchiveError(f"archive {self.path} is open for reading only")
         if not isinstance(receipt_utc_s, (int, float)) or not math.isfinite(receipt_utc_s):
             raise ArchiveError(f"receipt_utc_s must be a finite number, got {receipt_utc_s!r}")
         raw = bytes(raw)
@@ -219,6 +266,14 @@ class Archive:
             self.flush()
         return result
 
+    def alarm(self, receipt_utc_s: float, text: str, packet_id: int | None = None) -> None:
+        """Record a security alarm raised at ``receipt_utc_s`` by the packet ``packet_id`` (written at the next
+        flush)."""
+        self._check_open()
+        if self._read_only:
+            raise ArchiveError(f"archive {self.path} is open for reading only")
+        self._alarms.append((packet_id, receipt_utc_s, text))
+
     def store_many(self, packets: Iterable[bytes], receipt_utc_s: float) -> list[StoreResult]:
         """Archive several packets received at the same time."""
         return [self.store(p, receipt_utc_s) for p in packets]
@@ -246,14 +301,17 @@ class Archive:
     def flush(self) -> None:
         """Write every queued packet: raw octets to tm.bin, rows to SQLite in one transaction."""
         self._check_open()
-        if not self._packets:
+        if not self._packets and not self._alarms:
             return
+        assert self._bin is not None  # a read-only archive never queues packets
         self._bin.write(b"".join(self._raw))
         self._bin.flush()
         with self._db:
             self._db.executemany("INSERT INTO packets VALUES (?,?,?,?,?,?,?,?,?,?,?)", self._packets)
             self._db.executemany("INSERT INTO parameters VALUES (?,?,?,?)", self._params)
             self._db.executemany("INSERT INTO sequence_anomalies VALUES (?,?,?,?,?,?,?)", self._anomalies)
+            self._db.executemany("INSERT INTO alarms VALUES (?,?,?)", self._alarms)
+        self._alarms.clear()
         self._packets.clear()
         self._params.clear()
         self._anomalies.clear()
@@ -267,7 +325,8 @@ class Archive:
             self.flush()
         finally:
             self._closed = True
-            self._bin.close()
+            if self._bin is not None:
+                self._bin.close()
             self._db.close()
 
     def __enter__(self) -> Archive:
@@ -293,6 +352,17 @@ class Archive:
             (parameter, obt_from, obt_to),
         )
         return [Sample(*row) for row in rows]
+
+    def decoded_packets(self) -> list[tuple[float, bytes]]:
+        """(receipt UTC s, raw octets) of every decoded packet, in arrival order."""
+        self.flush()
+        rows = self._db.execute("SELECT receipt_utc_s, raw FROM packets WHERE error IS NULL ORDER BY id")
+        return [(t, bytes(r)) for t, r in rows]
+
+    def raw_packets(self) -> list[bytes]:
+        """Every packet as received, in arrival order (undecodable ones included)."""
+        self.flush()
+        return [bytes(r) for (r,) in self._db.execute("SELECT raw FROM packets ORDER BY id")]
 
     def parameter_names(self) -> list[str]:
         """Every parameter name present in the archive, sorted."""
@@ -347,6 +417,13 @@ class Archive:
         )
         return [Gap(*row) for row in rows]
 
+    def alarms(self) -> list[tuple[float, str]]:
+        """Every security alarm (receipt UTC s, text), in the order raised; none in an archive older than alarms."""
+        self.flush()
+        if not self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'alarms'").fetchone():
+            return []
+        return [(t, text) for t, text in self._db.execute("SELECT receipt_utc_s, text FROM alarms ORDER BY rowid")]
+
     def undecodable(self) -> list[Undecodable]:
         """Every packet kept raw because it could not be decoded, in arrival order."""
         self.flush()
@@ -355,7 +432,8 @@ class Archive:
 
     def counts(self) -> dict[str, int]:
         """Packet counts: ``stored``, ``decoded``, ``undecodable``, ``gaps``, ``missing`` (packets lost in gaps),
-        ``duplicates``, ``late``, and one ``TM[s,t]`` entry per service and subtype seen."""
+        ``duplicates``, ``late``, ``alarms`` (security alarms), and one ``TM[s,t]`` entry per service and subtype
+        seen."""
         self.flush()
         db = self._db
         stored, undecodable = db.execute(
@@ -370,6 +448,7 @@ class Archive:
         out["gaps"], out["missing"] = anomalies["gap"]
         out["duplicates"] = anomalies["duplicate"][0]
         out["late"] = anomalies["late"][0]
+        out["alarms"] = len(self.alarms())
         for service, sub, n in db.execute(
             "SELECT service, subservice, COUNT(*) FROM packets WHERE error IS NULL "
             "GROUP BY service, subservice ORDER BY service, subservice"

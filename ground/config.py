@@ -1,4 +1,7 @@
-"""Configuration of the ground segment and of the space link it talks through."""
+"""Configuration of the ground segment and of the space link it talks through.
+
+"paper" in a description is the LICIACube navigation paper.
+"""
 
 from __future__ import annotations
 
@@ -20,10 +23,14 @@ class ReportConfig(Config):
         "paper: more than 90%)",
     )
     in_view_after_ca_s: float = Field(
-        60.0, ge=0, description="the in-view and pointing windows end this long after the true C/A, s (issue 6)"
+        60.0, ge=0, description="the in-view and pointing windows end this long after the true C/A, s (the "
+        "window holds the fast part of the flyby: 60 s after C/A the line-of-sight rate is below 2 % of its peak at "
+        "the nominal 55 km and 7 km/s)",
     )
     max_pointing_error_fov_fraction: float = Field(
-        0.5, gt=0, description="largest pointing error allowed, as a fraction of the field of view (paper: half the FOV)"
+        0.5,
+        gt=0,
+        description="largest pointing error allowed, as a fraction of the field of view (paper: half the FOV)",
     )
     peak_rate_required_deg_s: float = Field(
         7.0, gt=0, description="body rate the spacecraft must reach, deg/s (paper: a peak of 7 deg/s)"
@@ -38,17 +45,19 @@ class ReportConfig(Config):
         30.0,
         gt=0,
         description="the C/A estimates are scored as they stood this long before the true C/A, s "
-        "(paper and DESIGN: autonomous tracking on the recognised trajectory starts at C/A-30 s)",
+        "(the LICIACube navigation paper: autonomous tracking on the recognised trajectory starts at C/A-30 s)",
     )
     mosaic_frames: int = Field(
-        16, ge=1, le=64, description="camera frames shown in the mosaic, count (issue 6: 12-16 spread over the flyby)"
+        16, ge=1, le=64, description="camera frames shown in the mosaic, count (a 4x4 grid: "
+        "one frame every ~25 s of a 420 s flyby, each still legible at a quarter of the page width)"
     )
     gif_max_frames: int = Field(
         140, ge=1, description="frames at most in the animated GIF, count (a 512-px frame is ~40-70 kB as GIF: "
         "140 keep a 420-frame flyby under ~10 MB)"
     )
     gif_max_bytes: int = Field(
-        10_000_000, gt=0, description="largest animated GIF, octets (issue 6: under ~10 MB); frames are thinned to fit"
+        10_000_000, gt=0, description="largest animated GIF, octets (10 MB: the usual attachment limit of "
+        "mail and issue trackers); frames are thinned to fit"
     )
     gif_frame_ms: int = Field(
         100, ge=20, description="display time of each GIF frame, ms (10 frames per second: ~14 s for 140 frames)"
@@ -80,6 +89,8 @@ class GroundConfig(Config):
 
     step_period_s: float = Field(1.0, gt=0, description="how often ground exchanges with the link, s of UTC")
     apid: int = Field(0x0C1, ge=0, lt=2048, description="APID the ground addresses its telecommands to")
+    source_id: int = Field(1, ge=0, le=0xFFFF, description="PUS source id of the ground's telecommands, the id "
+                           "its verification reports come back to (ECSS-E-ST-70-41C)")
     upload_nominal_at_s: float | None = Field(
         None,
         description="true time at which ground uploads the nominal trajectory, s after the epoch "

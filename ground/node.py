@@ -31,6 +31,7 @@ from ground.operator import OperatorError, command_request, timeline_request, tr
 from ground.segment import GroundSegment, ReceivedPacket
 
 log = logging.getLogger("ground")
+MAX_ALARM_LINES = 10  # security alarms quoted in the summary (the archive keeps them all)
 
 
 class TruthLog:
@@ -64,12 +65,23 @@ def summary_lines(segment: GroundSegment, archive: Archive) -> list[str]:
     c = segment.correlation
     lines.append(f"time correlation: OBT - UTC offset {c.offset_s:+.4f} s, drift {c.drift_ppm:+.3f} ppm "
                  f"from {c.n_reports} time reports")
+    alarms = segment.state.alarms
+    if alarms:
+        lines.append(f"{len(alarms)} security alarm(s); the first {min(len(alarms), MAX_ALARM_LINES)}:")
+        lines += alarms[:MAX_ALARM_LINES]
     return lines
 
 
 def operator_request(segment: GroundSegment, msg: OperatorCommand, utc_s: float | None) -> OperatorReply:
     """Queue the telecommands of an operator request, or refuse it with the reason."""
     try:
+        if msg.action == "send" and msg.name == "rekey":  # ground makes the key: the console never sees it
+            try:
+                segment.rekey()
+            except ValueError as exc:
+                raise OperatorError(str(exc)) from None
+            return OperatorReply(request=msg.request, ok=True, text="queued RekeySecurityAssociation for the next "
+                                 "uplink; ground sends under the new key once the spacecraft confirms it")
         if msg.action == "send":
             cmds = [command_request(msg.payload, segment.cfg.apid)]
             notes: list[str] = []
@@ -78,8 +90,8 @@ def operator_request(segment: GroundSegment, msg: OperatorCommand, utc_s: float 
         else:
             if utc_s is None:
                 raise OperatorError("the run has not started: no time to convert the timeline at")
-            insert, notes = timeline_request(msg.payload, msg.name, segment, utc_s)
-            cmds = [insert]
+            inserts, notes = timeline_request(msg.payload, msg.name, segment, utc_s)
+            cmds = list(inserts)
     except OperatorError as exc:
         return OperatorReply(request=msg.request, ok=False, text=str(exc))
     for c in cmds:
@@ -140,7 +152,9 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         bus.sim_time_s = msg.utc_s
         uplink, received, lines = segment.step(msg.utc_s, msg.downlink, msg.downlink_utc_s)
         for p in received:
-            archive.store(p.raw, p.receipt_utc_s)
+            stored = archive.store(p.raw, p.receipt_utc_s)
+            if p.alarm is not None:
+                archive.alarm(p.receipt_utc_s, p.alarm, stored.packet_id)
             line = tm_line(p)
             if line is not None:
                 bus.publish(bus.keys.tm_lines, line)
@@ -148,9 +162,9 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         for rec in msg.truth:
             truth.add(rec)
         for line in lines:
-            log.info("%s", line)
+            (log.warning if line.startswith("SECURITY ALARM") else log.info)("%s", line)
         if tc_log is not None and uplink:
-            tc_log.write(b"".join(uplink))  # every telecommand radiated, as sent, for later analysis
+            tc_log.write(b"".join(segment.radiated))  # every telecommand radiated (no security envelope), for analysis
             tc_log.flush()
         reply = GroundReply(step=msg.step, uplink=tuple(uplink))
         bus.publish(bus.keys.ground_reply, reply)

@@ -14,6 +14,7 @@ from contracts import pus
 from contracts.errors import FlybyError
 from contracts.textfile import TextFileError, decode_text, load_yaml
 from contracts.model import Frozen
+from ground.config import FlybyBelief
 from ground.segment import GroundSegment
 from ground.uplink import UplinkError, telecommand_of
 from timeline.convert import utc_seconds
@@ -100,8 +101,8 @@ def command_request(payload: bytes, apid: int = 0x0C1) -> pus.TcCommand:
         raise OperatorError(str(exc)) from None
 
 
-def trajectory_request(payload: bytes, segment: GroundSegment) -> pus.UploadNominalTrajectory:
-    """A new nominal trajectory, its C/A time turned into OBT with ground's current correlation."""
+def believed_trajectory(payload: bytes, belief: FlybyBelief, epoch_utc: str) -> FlybyBelief:
+    """Ground's belief of the flyby with a trajectory file's C/A time, distance and sigmas (the rest kept)."""
     data = _yaml(payload, "trajectory")
     try:
         t = TrajectoryUpload.model_validate(data)
@@ -114,23 +115,31 @@ def trajectory_request(payload: bytes, segment: GroundSegment) -> pus.UploadNomi
         from datetime import datetime
 
         try:
-            ca_s = utc_seconds(datetime.fromisoformat(t.ca_time_utc.replace("Z", "+00:00")), segment.epoch_utc)
+            ca_s = utc_seconds(datetime.fromisoformat(t.ca_time_utc.replace("Z", "+00:00")), epoch_utc)
         except (ValueError, TypeError) as exc:
             raise OperatorError(f"trajectory: ca_time_utc: {exc}") from None
     else:
         ca_s = float(t.ca_time_s)  # type: ignore[arg-type]
-    base = segment.nominal_trajectory_tc()
-    update: dict[str, Any] = {"ca_obt_s": segment.correlation.to_obt(ca_s), "ca_distance_km": t.ca_distance_km}
+    update: dict[str, Any] = {"ca_utc_s": ca_s, "ca_distance_km": t.ca_distance_km}
     if t.ca_time_sigma_s is not None:
-        update["sigma_ca_time_s"] = t.ca_time_sigma_s
+        update["ca_time_sigma_s"] = t.ca_time_sigma_s
     if t.ca_distance_sigma_km is not None:
-        update["sigma_ca_distance_km"] = t.ca_distance_sigma_km
+        update["ca_distance_sigma_km"] = t.ca_distance_sigma_km
+    return belief.model_copy(update=update)
+
+
+def trajectory_request(payload: bytes, segment: GroundSegment) -> pus.UploadNominalTrajectory:
+    """A new nominal trajectory, its C/A time turned into OBT with ground's current correlation."""
+    b = believed_trajectory(payload, segment.belief, segment.epoch_utc)
+    base = segment.nominal_trajectory_tc()
+    update: dict[str, Any] = {"ca_obt_s": segment.correlation.to_obt(b.ca_utc_s), "ca_distance_km": b.ca_distance_km,
+                              "sigma_ca_time_s": b.ca_time_sigma_s, "sigma_ca_distance_km": b.ca_distance_sigma_km}
     return pus.UploadNominalTrajectory.model_validate({**base.model_dump(), **update})
 
 
 def timeline_request(payload: bytes, name: str, segment: GroundSegment,
-                     utc_s: float) -> tuple[pus.InsertActivities, list[str]]:
-    """A timeline file (YAML, or CSV when ``name`` ends in .csv) as one PUS 11 insert, tags in OBT, and the
+                     utc_s: float) -> tuple[list[pus.InsertActivities | pus.InsertCaRelativeActivities], list[str]]:
+    """A timeline file (YAML, or CSV when ``name`` ends in .csv) as schedule inserts, tags in OBT, and the
     commands refused because they would arrive too late."""
     try:
         text = payload.decode("utf-8")
@@ -144,7 +153,7 @@ def timeline_request(payload: bytes, name: str, segment: GroundSegment,
     except TimelineError as exc:
         raise OperatorError("; ".join(exc.problems)) from None
     log: list[str] = []
-    insert = segment.timeline_upload(utc_s, segment.nominal_trajectory_tc(), log, timeline)
-    if insert is None:
+    inserts = segment.timeline_upload(utc_s, segment.nominal_trajectory_tc(), log, timeline)
+    if not inserts:
         raise OperatorError("timeline: " + ("; ".join(log) or "no command left to upload"))
-    return insert, log
+    return inserts, log

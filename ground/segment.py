@@ -8,15 +8,19 @@ it uploads to on-board time with its current OBT-UTC correlation, fitted from th
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 
-from contracts import pus
+from contracts import pus, sdls
 from ground.config import FlybyBelief, GroundConfig
 from ground.correlation import Correlation, CorrelationError, TimeReport, fitted_correlation
-from ground.uplink import schedule_insert
+from ground.uplink import schedule_inserts
 from timeline.convert import resolved_commands
 from timeline.model import Timeline, TimelineError
+
+
+SCHEDULED_SEQ_BASE = 0x2000  # TCs sent inside schedule inserts count from here, so the radiated counts stay gapless
 
 
 @dataclass(frozen=True)
@@ -28,13 +32,37 @@ class ReceivedPacket:
     header: pus.TmHeader | None
     report: pus.TmReport | None
     error: str | None
+    alarm: str | None = None  # a security alarm this packet raised
+
+
+@dataclass(frozen=True)
+class RowUpload:
+    """What ground did with one timeline row at an upload: the release OBT it resolved, and the sequence count of
+    the row's telecommand inside the schedule insert, or why it refused the row."""
+
+    row: int
+    command: str
+    obt_s: float
+    ca_offset_s: float | None
+    seq_count: int | None
+    refused: str | None
+
+
+@dataclass(frozen=True)
+class TimelineUpload:
+    """One upload of a timeline: when (UTC, s after the epoch), the earliest OBT ground allowed, and every row."""
+
+    utc_s: float
+    not_before_obt_s: float
+    rows: tuple[RowUpload, ...]
 
 
 @dataclass
 class GroundState:
     """Counters and latest values that ground keeps between steps."""
 
-    tc_seq: int = 0
+    tc_seq: int = 0  # the next radiated TC's sequence count, 0 .. SCHEDULED_SEQ_BASE - 1
+    scheduled_seq: int = SCHEDULED_SEQ_BASE  # the next scheduled TC's, SCHEDULED_SEQ_BASE .. MAX_SEQ_COUNT
     received: int = 0
     undecodable: int = 0
     time_reports: list[TimeReport] = field(default_factory=list)
@@ -42,13 +70,18 @@ class GroundState:
     last_hk_obt_s: float | None = None
     nominal_sent: bool = False
     verifications_failed: int = 0
+    sent_requests: set[pus.RequestId] = field(default_factory=set)  # every TC ground sent, scheduled ones included
+    alarms: list[str] = field(default_factory=list)
 
 
 class GroundSegment:
     """Ground's logic for one run."""
 
-    def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None) -> None:
-        """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags."""
+    def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None,
+                 keys: sdls.KeyRing | None = None) -> None:
+        """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags;
+        ``keys``: the security associations that authenticate its TCs (none: TCs go out unsecured, and the
+        spacecraft refuses them)."""
         self.cfg = cfg
         self.belief = belief
         self.epoch_utc = epoch_utc
@@ -57,6 +90,12 @@ class GroundSegment:
         self.state = GroundState()
         self.timeline = timeline
         self._queue: list[pus.TcCommand] = []
+        self.uploads: list[TimelineUpload] = []
+        self._sender = None if keys is None else sdls.Sender(keys)
+        self._next_spi = 1 + max((sa.spi for sa in keys.associations), default=0) if keys is not None else 1
+        self._rekeys: dict[pus.RequestId, sdls.SecurityAssociation] = {}  # rekeying TC -> the association it loads
+        self._new_sa: dict[int, sdls.SecurityAssociation] = {}
+        self.radiated: list[bytes] = []  # the TC packets of the last step's uplink, without their security envelope
 
     def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
         """The nominal trajectory telecommand, its C/A time in OBT by the current correlation."""
@@ -80,8 +119,27 @@ class GroundSegment:
         """Send ``cmd`` at the next step (operator commands, timeline uploads)."""
         self._queue.append(cmd)
 
+    def rekey(self) -> pus.RekeySecurityAssociation:
+        """A rekeying TC with a fresh association, queued; ground switches to it when the spacecraft reports the TC
+        completed (until then it keeps sending under the current one, which the spacecraft still accepts)."""
+        if self._sender is None:
+            raise ValueError("ground holds no TC keys to rekey")
+        sa, wrapped = self._sender.new_association(self._next_spi)
+        self._next_spi += 1
+        self._new_sa[sa.spi] = sa
+        cmd = pus.RekeySecurityAssociation(spi=sa.spi, wrapped_key=wrapped)
+        self.queue(cmd)
+        return cmd
+
     def _tc(self, cmd: pus.TcCommand) -> bytes:
-        return pus.encode_tc(cmd, self.cfg.apid, self._next_seq())
+        packet = pus.encode_tc(cmd, self.cfg.apid, self._next_seq(), source_id=self.cfg.source_id)
+        sent = self.state.sent_requests
+        sent.add(pus.request_id_of(packet))
+        if isinstance(cmd, pus.RekeySecurityAssociation) and cmd.spi in self._new_sa:
+            self._rekeys[pus.request_id_of(packet)] = self._new_sa.pop(cmd.spi)
+        if isinstance(cmd, pus.InsertActivities | pus.InsertCaRelativeActivities):
+            sent.update(a.request_id for a in cmd.activities)
+        return packet
 
     def step(self, utc_s: float, downlink: tuple[bytes, ...], arrival_utc_s: tuple[float, ...]
              ) -> tuple[list[bytes], list[ReceivedPacket], list[str]]:
@@ -101,40 +159,62 @@ class GroundSegment:
             uplink.append(self._tc(tc))
             uplink.append(self._tc(pus.SetTimeReportRate(rate_exponent=self.cfg.time_report_rate_exponent)))
             if self.timeline is not None and self.timeline.entries:
-                insert = self.timeline_upload(utc_s, tc, log)
-                if insert is not None:
-                    uplink.append(self._tc(insert))
-                    log.append(f"upload timeline: {len(insert.activities)} of {len(self.timeline.entries)} "
-                               "command(s) into the on-board schedule")
+                inserts = self.timeline_upload(utc_s, tc, log)
+                uplink += [self._tc(insert) for insert in inserts]
+                if inserts:
+                    log.append(f"upload timeline: {sum(len(i.activities) for i in inserts)} of "
+                               f"{len(self.timeline.entries)} command(s) into the on-board schedule")
         for cmd in self._queue:
             uplink.append(self._tc(cmd))
         self._queue = []
-        return uplink, received, log
+        self.radiated = uplink
+        units = uplink if self._sender is None else [self._sender.secure(p) for p in uplink]
+        return units, received, log
 
     def timeline_upload(self, utc_s: float, nominal: pus.UploadNominalTrajectory, log: list[str],
-                        timeline: Timeline | None = None) -> pus.InsertActivities | None:
-        """The service 11 insert of the timeline, tags in OBT by the current correlation.
+                        timeline: Timeline | None = None) -> list[pus.InsertActivities | pus.InsertCaRelativeActivities]:
+        """The schedule inserts of the timeline (``ground.uplink.schedule_inserts``), tags in OBT by the current
+        correlation.
 
         Commands that would reach the spacecraft too late (before now + light time + margin) are refused here,
-        each logged with its row, and the rest is uploaded; None if nothing is left.
+        each logged with its row, and the rest is uploaded; empty if nothing is left. What happened to every row is
+        appended to ``uploads``.
         """
         timeline = timeline or self.timeline
         assert timeline is not None
         source = self.cfg.timeline_file or "<timeline>"
         not_before = self.correlation.to_obt(utc_s + self.cfg.link.one_way_light_time_s + self.cfg.upload_margin_s)
         kw = dict(epoch_utc=self.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
+        every = resolved_commands(timeline, self.correlation, **kw)
+        why: dict[int, str] = {}
         try:
-            resolved = resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
-        except TimelineError as err:
+            resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
+        except TimelineError as err:  # the rows that would arrive too late, each named by its row
             log.extend(f"timeline command refused: {p}" for p in err.problems)
-            resolved = [r for r in resolved_commands(timeline, self.correlation, **kw) if r.obt_s >= not_before]
-        if not resolved:
-            return None
-        return schedule_insert(resolved, self.cfg.apid, self._next_seq, nominal)
+            why = {int(m.group(1)): p for p in err.problems if (m := re.match(r"row (\d+),", p))}
+        resolved = [r for r in every if r.row not in why]
+        seqs: list[int] = []  # the sequence count of each resolved command's TC, in resolved order
+
+        def next_seq() -> int:
+            seqs.append(self._next_scheduled_seq())
+            return seqs[-1]
+
+        inserts = schedule_inserts(resolved, self.cfg.apid, next_seq, nominal, self.cfg.source_id)
+        seq_of = {r.row: s for r, s in zip(resolved, seqs, strict=True)}
+        self.uploads.append(TimelineUpload(utc_s, not_before, tuple(
+            RowUpload(r.row, r.command.name, r.obt_s, r.ca_offset_s, seq_of.get(r.row), why.get(r.row))
+            for r in sorted(every, key=lambda r: r.row))))
+        return inserts
 
     def _next_seq(self) -> int:
         seq = self.state.tc_seq
-        self.state.tc_seq = (seq + 1) % pus.SEQ_COUNT_MODULO
+        self.state.tc_seq = (seq + 1) % SCHEDULED_SEQ_BASE
+        return seq
+
+    def _next_scheduled_seq(self) -> int:
+        seq = self.state.scheduled_seq
+        self.state.scheduled_seq = SCHEDULED_SEQ_BASE + (seq + 1 - SCHEDULED_SEQ_BASE) % (
+            pus.SEQ_COUNT_MODULO - SCHEDULED_SEQ_BASE)
         return seq
 
     def _receive(self, raw: bytes, utc_s: float, log: list[str]) -> ReceivedPacket:
@@ -152,6 +232,11 @@ class GroundSegment:
             self._refit(log)
         elif isinstance(report, pus.Housekeeping):
             self.state.last_hk, self.state.last_hk_obt_s = report, header.obt_s
+        elif isinstance(report, pus.Verification) and report.success and report.stage == pus.Stage.COMPLETION \
+                and report.request_id in self._rekeys and self._sender is not None:
+            sa = self._rekeys.pop(report.request_id)
+            self._sender.switch(sa)
+            log.append(f"TC authentication: the spacecraft loaded security association {sa.spi}; sending under it")
         elif isinstance(report, pus.Verification) and not report.success:
             self.state.verifications_failed += 1
             log.append(f"TC {report.request_id.seq_count} failed at {report.stage.name.lower()}: "
@@ -161,7 +246,27 @@ class GroundSegment:
                        + ", ".join(f"{k}={v}" for k, v in report.model_dump().items() if k != "severity"))
             if isinstance(report, pus.ClockJumpEvent):
                 self._clock_jumped(report.step_s, log)
-        return ReceivedPacket(raw, utc_s, header, report, None)
+        alarm = self._security_alarm(header, report)
+        if alarm is not None:
+            self.state.alarms.append(alarm)
+            log.append(alarm)
+        return ReceivedPacket(raw, utc_s, header, report, None, alarm)
+
+    def _security_alarm(self, header: pus.TmHeader, report: pus.TmReport) -> str | None:
+        """A security alarm for a verification report of a TC ground never sent (someone else commanded the
+        spacecraft, or tried to), or for a TC the spacecraft refused as unauthentic; None otherwise."""
+        at = f"OBT {header.obt_s:.2f} s"
+        if isinstance(report, pus.Verification) and report.request_id not in self.state.sent_requests:
+            rid = report.request_id
+            outcome = "success" if report.success else f"failure 0x{report.failure_code:04X} {report.reason}"
+            return (f"SECURITY ALARM: {at}: {report.stage.name.lower()} {outcome} of TC APID 0x{rid.apid:03X} "
+                    f"sequence {rid.seq_count}, which ground never sent")
+        if isinstance(report, pus.TcSecurityRejectedEvent):
+            known = report.failure_code in pus.FailureCode._value2member_map_
+            code = pus.FailureCode(report.failure_code).name if known else f"0x{report.failure_code:04X}"
+            return (f"SECURITY ALARM: {at}: the spacecraft refused an uplinked TC ({code}, SPI {report.spi}, "
+                    f"ARSN {report.arsn})")
+        return None
 
     def _clock_jumped(self, step_s: float, log: list[str]) -> None:
         """On-board time stepped by ``step_s`` (commanded or not): the time reports received so far were all stamped

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import csv
 import math
+import sqlite3
 import sys
 import tempfile
 from collections.abc import Iterator, Sequence
@@ -17,6 +18,7 @@ from pathlib import Path
 
 from contracts.errors import FlybyError
 from contracts.exitcodes import EXIT_CONFIG as EXIT_USAGE
+from contracts.pus import complete_packets
 from ground.archive import Archive, ArchiveError, Sample
 
 
@@ -27,18 +29,36 @@ class TmQueryError(FlybyError):
 
 @contextmanager
 def run_archive(run_dir: Path) -> Iterator[Archive]:
-    """The archive of a run folder, opened for reading; TmQueryError if the folder has none.
+    """The archive of a run folder, opened for reading only (nothing is written into the folder).
 
-    Never creates files in the run folder: if tm.bin is missing, the Archive's raw-packet file goes to a
-    temporary folder instead.
+    If archive.sqlite is missing or damaged but the raw tm.bin is there, the archive is rebuilt in memory from
+    tm.bin (receipt times are unknown there and read 0) and ``archive.damage`` says why; TmQueryError if neither
+    can serve.
     """
-    db = Path(run_dir) / "archive.sqlite"
-    if not db.is_file():
-        raise TmQueryError(f"{run_dir}: no archive.sqlite (is this a run folder?)")
-    tm_bin = Path(run_dir) / "tm.bin"
-    with tempfile.TemporaryDirectory() as tmp:
-        with Archive(db, tm_bin=tm_bin if tm_bin.is_file() else Path(tmp) / "tm.bin") as archive:
-            yield archive
+    db, tm_bin = Path(run_dir) / "archive.sqlite", Path(run_dir) / "tm.bin"
+    if not Path(run_dir).is_dir():
+        raise TmQueryError(f"{run_dir}: no such folder")
+    if not db.is_file() and not tm_bin.is_file():
+        raise TmQueryError(f"{run_dir}: no archive.sqlite and no tm.bin (is this a run folder?)")
+    try:
+        archive = Archive.read_only(db)
+    except ArchiveError as exc:
+        if not tm_bin.is_file():
+            raise TmQueryError(f"{exc}; and no tm.bin to fall back on (is this a run folder?)") from None
+        with tempfile.TemporaryDirectory() as tmp:
+            with Archive(":memory:", tm_bin=Path(tmp) / "tm.bin") as rebuilt:
+                packets, tail = complete_packets(tm_bin.read_bytes())
+                rebuilt.store_many(packets, 0.0)
+                rebuilt.damage = (f"{exc}: read {len(packets)} packet(s) from tm.bin instead (receipt times unknown)"
+                                  + (f", ignoring {tail} octets of an incomplete last packet" if tail else ""))
+                yield rebuilt
+        return
+    try:
+        yield archive
+    except sqlite3.DatabaseError as exc:  # damage deeper in the file, met by a query
+        raise TmQueryError(f"{db}: damaged database: {exc}") from None
+    finally:
+        archive.close()
 
 
 def parameter_counts(run_dir: Path) -> list[tuple[str, int]]:
@@ -96,22 +116,26 @@ def cmd_tm(args: argparse.Namespace) -> int:
     obt_from = -math.inf if args.obt_from is None else args.obt_from
     obt_to = math.inf if args.obt_to is None else args.obt_to
     try:
+        with run_archive(args.run_dir) as archive:
+            damage = archive.damage
+        if damage:  # served from tm.bin all the same; exit 2 afterwards so a script sees the damage
+            print(f"flyby tm: {damage}", file=sys.stderr)
         if not args.param:
             if args.csv is not None:
                 raise TmQueryError("--csv needs at least one --param")
             for name, n in parameter_counts(args.run_dir):
                 print(f"{name}\t{n}")
-            return 0
+            return EXIT_USAGE if damage else 0
         if args.csv is not None:
             n = export_parameters_csv(args.run_dir, args.param, args.csv, obt_from, obt_to)
             print(f"{n} packet(s) written to {args.csv}", file=sys.stderr)
-            return 0
+            return EXIT_USAGE if damage else 0
         for name in args.param:
             samples = parameter_samples(args.run_dir, name, obt_from, obt_to)
             print(f"# {name}: {len(samples)} sample(s)\nobt_s\tvalue")
             for s in samples:
                 print(f"{s.obt_s!r}\t{s.value!r}")
-        return 0
+        return EXIT_USAGE if damage else 0
     except (TmQueryError, ArchiveError) as err:
         print(f"flyby tm: {err}", file=sys.stderr)
         return EXIT_USAGE

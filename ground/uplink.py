@@ -1,5 +1,6 @@
-"""Turning a validated timeline into PUS telecommands: each command becomes its TC, wrapped in one
-service 11 insert with its release OBT (and its C/A offset, so the spacecraft can re-anchor it on board)."""
+"""Turning a validated timeline into PUS telecommands: each command becomes its TC, wrapped with its release OBT
+in a service 11 insert, or with its C/A offset too in the mission's C/A-relative insert (so the spacecraft can
+re-anchor it on board)."""
 
 from __future__ import annotations
 
@@ -32,12 +33,21 @@ def telecommand_of(command: Command, nominal: pus.UploadNominalTrajectory | None
     return cls.model_validate({**known, **command.args})  # type: ignore[return-value]
 
 
-def schedule_insert(resolved: list[ResolvedCommand], apid: int, next_seq: Callable[[], int],
-                    nominal: pus.UploadNominalTrajectory | None = None) -> pus.InsertActivities:
-    """One TC[11,4] inserting every resolved command, each as a complete TC with its own sequence count."""
-    activities = tuple(
-        pus.ScheduledActivity(release_obt_s=r.obt_s, ca_offset_s=r.ca_offset_s,
-                              tc_packet=pus.encode_tc(telecommand_of(r.command, nominal=nominal), apid, next_seq()))
-        for r in resolved
-    )
-    return pus.InsertActivities(activities=activities)
+def schedule_inserts(resolved: list[ResolvedCommand], apid: int, next_seq: Callable[[], int],
+                     nominal: pus.UploadNominalTrajectory | None = None,
+                     source_id: int = 0) -> list[pus.InsertActivities | pus.InsertCaRelativeActivities]:
+    """The inserts of every resolved command, each as a complete TC with its own sequence count: one TC[11,4] for
+    the absolute tags, one TC[200,8] for the tags that follow the C/A estimate (either left out when empty)."""
+    absolute, relative = [], []
+    for r in resolved:
+        packet = pus.encode_tc(telecommand_of(r.command, nominal=nominal), apid, next_seq(), source_id=source_id)
+        if r.ca_offset_s is None:
+            absolute.append(pus.ScheduledActivity(release_obt_s=r.obt_s, tc_packet=packet))
+        else:
+            relative.append(pus.CaRelativeActivity(ca_offset_s=r.ca_offset_s, release_obt_s=r.obt_s, tc_packet=packet))
+    out: list[pus.InsertActivities | pus.InsertCaRelativeActivities] = []
+    if absolute:
+        out.append(pus.InsertActivities(activities=tuple(absolute)))
+    if relative:
+        out.append(pus.InsertCaRelativeActivities(activities=tuple(relative)))
+    return out

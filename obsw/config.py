@@ -1,4 +1,7 @@
-"""Configuration of the on-board software: rates, gains and mode thresholds, all in on-board time."""
+"""Configuration of the on-board software: rates, gains and mode thresholds, all in on-board time.
+
+"paper" in a description is the LICIACube navigation paper.
+"""
 
 from __future__ import annotations
 
@@ -8,6 +11,8 @@ from pydantic import Field, field_validator, model_validator
 
 from contracts.checks import inertia_problem
 from contracts.model import Config
+from obsw.table import ScheduleTable
+from obsw.timing import TimingConfig
 
 
 class ControlConfig(Config):
@@ -112,6 +117,12 @@ class TrackingConfig(Config):
         description="in AUTONOMOUS_TRACKING, extend the measured offset along its slope between frames (False: "
         "hold it; the recognised trajectory carries the LOS motion, so a slope is noise or a misidentified "
         "blob, and one at C/A+48 s drove the pointing 1.2 deg off in 3 s of extrapolation)",
+    )
+    propagate_late_measurements: bool = Field(
+        True,
+        description="a line of sight that reaches the loop after its exposure is taken against the trajectory at "
+        "its exposure time, so the trajectory carries it to the present (False: as if exposed when it reached the "
+        "loop, the stale direction against the present prediction; for comparing the two in bench/latency.py)",
     )
     plane_normal_axis_body: tuple[float, float, float] = Field(
         (0.0, 1.0, 0.0),
@@ -312,6 +323,8 @@ class ObswConfig(Config):
         10, ge=1, description="line-of-sight measurements needed before the on-board C/A estimate is trusted"
     )
     apid: int = Field(0x0C1, ge=0, lt=2048, description="APID of the on-board software's packets")
+    ground_id: int = Field(1, ge=0, le=0xFFFF, description="PUS destination id of unsolicited telemetry, the "
+                           "ground's application id (ECSS-E-ST-70-41C; a TC's reports go to its own source id)")
     inertia_kgm2: tuple[tuple[float, float, float], ...] = Field(
         ((0.152, 0.0, 0.0), (0.0, 0.117, 0.0), (0.0, 0.0, 0.058)),
         description="on-board knowledge of the inertia matrix, kg m^2",
@@ -323,6 +336,9 @@ class ObswConfig(Config):
     recognition: RecognitionConfig = RecognitionConfig()
     tracking: TrackingConfig = TrackingConfig()
     imaging: ImagingConfig = ImagingConfig()
+    executive: ScheduleTable = Field(ScheduleTable(), description="the executive's schedule table (obsw.table)")
+    timing: TimingConfig = Field(TimingConfig(), description="execution times on the modelled on-board computer "
+                                 "(obsw.timing)")
 
     @field_validator("inertia_kgm2")
     @classmethod

@@ -2,7 +2,8 @@
 
 - ``CommandRejected``: the ground sent something the spacecraft refuses (unknown command, bad argument, a tag in
   the past, a full schedule, an illegal mode change...). It carries a ``RejectReason`` code, which goes into the
-  PUS service 1 failure report, and a text naming the field or value at fault. The OBSW carries on.
+  PUS service 1 failure report (as 0x0100 + the code), and a text naming the field or value at fault. The OBSW
+  carries on.
 - ``InternalFault``: the flight software itself is inconsistent (a bug or a broken invariant). It is never the
   ground's fault and must be reported as an on-board fault, not as a telecommand failure.
 """
@@ -13,7 +14,8 @@ from enum import IntEnum
 
 
 class RejectReason(IntEnum):
-    """Why a telecommand or a schedule entry was refused; the value is the PUS 1 failure code."""
+    """Why a telecommand or a schedule entry was refused; the PUS service 1 failure code is 0x0100 + the value (the
+    range ``contracts.pus.FailureCode`` leaves to the OBSW; below it are the codes of undecodable packets)."""
 
     MALFORMED = 1
     UNKNOWN_COMMAND = 2

@@ -8,6 +8,7 @@ our reply was lost) gets the same reply again, so the core never runs a period t
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import numpy as np
 import zenoh
@@ -17,6 +18,7 @@ from contracts.clock import WallClock
 from contracts.errors import NodeFailure
 from contracts.messages import StepReply, StepRequest
 from contracts.runtime import Attachment
+from contracts.steplog import FrameKeeping, StepLogWriter
 from obsw.software import FlightSoftware
 
 log = logging.getLogger("obsw")
@@ -40,8 +42,8 @@ def frame_pixels(req: StepRequest, blob: bytes) -> np.ndarray | None:
     return np.frombuffer(blob, dtype="<u2").reshape(meta.height, meta.width)
 
 
-def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig) -> None:
-    """Answer steps until the universe ends the run."""
+def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig, record: StepLogWriter | None = None) -> None:
+    """Answer steps until the universe ends the run; ``record`` gets each period's request, frame and reply."""
     last: tuple[int, StepReply] | None = None
     last_status = -1.0
     clock = bus.clock
@@ -67,6 +69,8 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig) -> None:
             frame = None
             req = req.model_copy(update={"frame": None})
         reply = fsw.step(req, frame)
+        if record is not None:
+            record.step(req, got.blob if frame is not None else b"", reply, verdicts=fsw.security.take_verdicts())
         for line in fsw.take_log():
             log.info("%s", line)
         bus.sim_time_s = req.obt_s
@@ -78,15 +82,30 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig) -> None:
             last_status = now
 
 
-def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: str) -> int:
-    """Run the OBSW node until the run ends or a peer fails; return the process exit code."""
+def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: str, record: Path | None = None,
+         record_header: dict[str, object] | None = None, record_frames: FrameKeeping = "reference") -> int:
+    """Run the OBSW node until the run ends or a peer fails; return the process exit code.
+
+    ``record``: the file to record the software's inputs and outputs into (``contracts.steplog``), written by a
+    thread of its own, camera frames kept by reference or raw (``record_frames``); ``record_header`` adds facts of
+    the run to it (the configuration is always there).
+    """
     keys = Keys(run_id)
+    writer = None
+    if record is not None:
+        writer = StepLogWriter(record, {**(record_header or {}), "obsw": fsw.cfg.model_dump(mode="json")},
+                               frames=record_frames)
+        fsw.security.keep_verdicts = True
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "obsw", WallClock(), log)
         bus.subscribe(keys.step, StepRequest)
         bus.watch_peers()
         bus.declare_alive()
         try:
-            return bus.guarded(lambda: run(bus, fsw, bus_cfg))[0]
+            return bus.guarded(lambda: run(bus, fsw, bus_cfg, writer))[0]
         finally:
             bus.close()
+            if writer is not None:
+                writer.close()
+                if writer.error:
+                    log.error("step record: %s", writer.error)

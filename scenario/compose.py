@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from contracts.sdls import KeyRing
 from contracts.seeding import rng_streams
 from ground.config import FlybyBelief
 from ground.segment import GroundSegment
@@ -19,9 +20,9 @@ from universe.geometry import nominal_ca
 from universe.simulator import Universe
 
 
-def flight_software(scenario: Scenario) -> FlightSoftware:
-    """The on-board software, configured with on-board knowledge only."""
-    return FlightSoftware(scenario.obsw)
+def flight_software(scenario: Scenario, keys: KeyRing | None) -> FlightSoftware:
+    """The on-board software, configured with on-board knowledge only, holding ``keys`` to authenticate TCs."""
+    return FlightSoftware(scenario.obsw, keys)
 
 
 def universe(scenario: Scenario) -> Universe:
@@ -45,6 +46,6 @@ def ground_belief(scenario: Scenario) -> FlybyBelief:
                        ca_time_sigma_s=unc.ca_time_sigma_s, ca_distance_sigma_km=unc.ca_distance_sigma_km)
 
 
-def ground_segment(scenario: Scenario, timeline: Timeline | None = None) -> GroundSegment:
-    """The ground segment with its belief of the flyby and the timeline it uploads."""
-    return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline)
+def ground_segment(scenario: Scenario, timeline: Timeline | None = None, keys: KeyRing | None = None) -> GroundSegment:
+    """The ground segment with its belief of the flyby, the timeline it uploads and the keys it secures TCs with."""
+    return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline, keys)

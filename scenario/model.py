@@ -99,7 +99,7 @@ def field_path(loc: tuple[int | str, ...]) -> str:
     """A pydantic error location as the scenario file names it: ``universe.faults[2].wheel``."""
     out = ""
     for part in loc:
-        if isinstance(part, int) or not str(part).isidentifier():
+        if isinstance(part, int) or not (str(part).isidentifier() and str(part).isascii()):
             out += f"[{part!r}]" if isinstance(part, str) else f"[{part}]"
         else:
             out += f".{part}" if out else str(part)

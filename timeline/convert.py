@@ -31,11 +31,13 @@ class UtcToObt(Protocol):
 
 
 class ResolvedCommand(NamedTuple):
-    """A command ready for the on-board schedule: its OBT tag, its C/A offset if tied to C/A, the command."""
+    """A command ready for the on-board schedule: its OBT tag, its C/A offset if tied to C/A, the command, and its
+    row in the timeline (1-based, file order)."""
 
     obt_s: float
     ca_offset_s: float | None
     command: Command
+    row: int = 0
 
 
 def epoch_datetime(epoch_utc: str | datetime) -> datetime:
@@ -85,23 +87,23 @@ def resolved_commands(
         tag = entry.tag
         current: ResolvedCommand | None = None
         if isinstance(tag, UtcTag):
-            current = ResolvedCommand(correlation.to_obt(utc_seconds(tag.utc, epoch)), None, entry.command)
+            current = ResolvedCommand(correlation.to_obt(utc_seconds(tag.utc, epoch)), None, entry.command, row)
         elif isinstance(tag, ObtTag):
-            current = ResolvedCommand(tag.obt_s, None, entry.command)
+            current = ResolvedCommand(tag.obt_s, None, entry.command, row)
         elif isinstance(tag, CaTag):
             if ca_obt_s is None:
                 problems.append(f"row {row}, field 'time': tied to C/A but no C/A estimate (ca_utc_s) was given")
             else:
-                current = ResolvedCommand(ca_obt_s + tag.ca_offset_s, tag.ca_offset_s, entry.command)
+                current = ResolvedCommand(ca_obt_s + tag.ca_offset_s, tag.ca_offset_s, entry.command, row)
         elif isinstance(tag, AfterPreviousTag):
             if previous is None:
                 # The previous row failed (reported already) or there is none (Timeline refuses that).
                 problems.append(f"row {row}, field 'time': relative to row {row - 1}, which could not be resolved")
             elif previous.ca_offset_s is not None and ca_obt_s is not None:
                 offset = previous.ca_offset_s + tag.delay_s
-                current = ResolvedCommand(ca_obt_s + offset, offset, entry.command)
+                current = ResolvedCommand(ca_obt_s + offset, offset, entry.command, row)
             else:
-                current = ResolvedCommand(previous.obt_s + tag.delay_s, None, entry.command)
+                current = ResolvedCommand(previous.obt_s + tag.delay_s, None, entry.command, row)
         if current is not None and not math.isfinite(current.obt_s):
             problems.append(f"row {row}, field 'time': resolves to a non-finite OBT ({current.obt_s})")
             current = None

@@ -15,7 +15,8 @@ from collections.abc import Iterable, Mapping
 from copy import copy
 from dataclasses import dataclass
 from datetime import datetime, timezone
-from typing import Annotated, Any, Literal
+from types import UnionType
+from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import Field, ValidationError, create_model, field_validator, model_validator
 
@@ -203,16 +204,53 @@ class CommandRegistry:
                 seen.setdefault(f, None)
         return tuple(seen)
 
-    def command(self, name: str, args: Mapping[str, Any] | None = None) -> Command:
-        """Validate ``args`` against the definition of ``name`` and return the command, or raise CommandError."""
+    def command(self, name: str, args: Mapping[str, Any] | None = None, *, from_text: bool = False) -> Command:
+        """Validate ``args`` against the definition of ``name`` and return the command, or raise CommandError.
+
+        Values typed by their format (YAML) must be numbers where the argument is a number, and finite (``true``
+        or ``'0.5'`` is refused); ``from_text`` values (CSV cells) are text and are converted.
+        """
         definition = self.definition(name)
         if args is not None and not isinstance(args, Mapping):
             raise CommandError(name, [("args", f"must be a mapping of argument names, got {type(args).__name__}")])
+        if not from_text:
+            wrong = [(k, why) for k, v in (args or {}).items()
+                     if k in definition.arguments.model_fields
+                     and (why := _not_a_number(v, definition.arguments.model_fields[k].annotation))]
+            if wrong:
+                raise CommandError(name, wrong)
         try:
             parsed = definition.arguments.model_validate(dict(args or {}))
         except ValidationError as exc:
             raise CommandError(name, [(_arg_field(e["loc"]), _arg_message(e)) for e in exc.errors()]) from None
         return Command(name=name, args=parsed.model_dump(mode="json"))
+
+
+def _numeric(annotation: Any) -> type | None:
+    """``int`` or ``float`` if an argument's type is that number (possibly optional or annotated), else None."""
+    if annotation in (int, float):
+        return annotation  # type: ignore[no-any-return]
+    args = get_args(annotation)
+    if get_origin(annotation) is Annotated:
+        return _numeric(args[0])
+    if get_origin(annotation) in (Union, UnionType):
+        kinds = {_numeric(a) for a in args if a is not type(None)} - {None}
+        return float if float in kinds else int if kinds else None
+    return None
+
+
+def _not_a_number(value: Any, annotation: Any) -> str | None:
+    """Why a typed value cannot be a number argument, or None."""
+    kind = _numeric(annotation)
+    if kind is None or value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return f"must be a number, got {value!r} ({type(value).__name__})"
+    if kind is int and isinstance(value, float):
+        return f"must be a whole number, got {value!r}"
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"must be a finite number, got {value!r}"
+    return None
 
 
 def _arguments(packet: type[Packet]) -> type[Frozen]:

@@ -132,6 +132,7 @@ def _entry(
     is_first: bool,
     registry: CommandRegistry,
     field_of: Callable[[str], str],
+    from_text: bool = False,
 ) -> tuple[TimelineEntry | None, list[str]]:
     """Validate one entry; return it (or None) and the problems found, each naming ``row`` and a field."""
     problems: list[str] = []
@@ -149,7 +150,7 @@ def _entry(
         problems.append(f"{row}, {field_of('command')}: missing command name")
     else:
         try:
-            command = registry.command(name.strip(), args)
+            command = registry.command(name.strip(), args, from_text=from_text)
         except CommandError as exc:
             for f, msg in exc.problems:
                 key = f if f in ("command", "args") else "args" if f == "(args)" else "args." + f
@@ -261,7 +262,7 @@ def timeline_from_csv_text(text: str, source: str = "<timeline>", registry: Comm
             problems.append(f"{row}, column 'time': missing")
             continue
         entry, found = _entry(row, values["time"], values["command"], args, n == 1, reg,
-                              _csv_field)
+                              _csv_field, from_text=True)
         problems.extend(found)
         if entry is not None:
             entries.append(entry)

@@ -1,6 +1,7 @@
 """Configuration of the universe simulator: the truth the flight software is judged against.
 
-Every number carries its unit in its name or description, a default and the source of that default.
+Every number carries its unit in its name or description, a default and the source of that default; "paper" is
+the LICIACube navigation paper.
 """
 
 from __future__ import annotations
@@ -24,8 +25,14 @@ class FlybyConfig(Config):
         description="true time of closest approach, s after the scenario epoch "
         "(LICIACube flew by about 168 s after the DART impact)",
     )
-    ca_distance_km: float = Field(55.0, gt=0, description="true C/A distance, km (paper: 55 km)")
-    speed_km_s: float = Field(7.0, gt=0, description="relative speed, km/s (paper: ~7 km/s)")
+    ca_distance_km: float = Field(
+        55.0, gt=0, le=1.0e6, description="true C/A distance, km (paper: 55 km; up to a million km, where Didymos is "
+        "a fraction of a pixel: farther is outside what this emulator models)"
+    )
+    speed_km_s: float = Field(
+        7.0, gt=0, le=100.0, description="relative speed, km/s (paper: ~7 km/s; at most 100 km/s, faster than any "
+        "heliocentric encounter)"
+    )
     approach_direction: Vec3 = Field(
         (1.0, 0.0, 0.0),
         description="direction of the spacecraft velocity relative to Didymos, inertial frame (normalised)",
@@ -139,8 +146,9 @@ class SpacecraftConfig(Config):
     integration_substep_s: float = Field(
         0.01,
         gt=0,
-        description="longest fixed RK4 substep of the attitude dynamics, s (0.01 s keeps the energy error "
-        "below 1e-9 over a 600 s flyby at CubeSat rates; brief of the dynamics module)",
+        description="longest fixed RK4 substep of the attitude dynamics, s (0.01 s keeps the relative "
+        "kinetic-energy error of torque-free motion below 1e-9 over a 600 s flyby at CubeSat rates, as "
+        "tests/universe/test_dynamics.py checks)",
     )
 
     @field_validator("inertia_kgm2")
@@ -201,8 +209,20 @@ class CameraConfig(Config):
     )
     gain_e_per_dn: float = Field(4.0, gt=0, description="detector gain, electrons per DN (CMOS sensor class)")
     read_noise_e: float = Field(8.0, ge=0, description="one-sigma read noise, electrons (CMOS sensor class)")
-    dark_offset_dn: float = Field(64.0, ge=0, description="dark (bias) offset added to every pixel, DN (typical ADC pedestal)")
-    dark_current_e_s: float = Field(50.0, ge=0, description="mean dark current, electrons per second per pixel (CMOS at ~20 C)")
+    dark_offset_dn: float = Field(
+        64.0, ge=0, description="dark (bias) offset added to every pixel, DN (typical ADC pedestal)"
+    )
+    dark_current_e_s: float = Field(
+        50.0, ge=0, description="mean dark current, electrons per second per pixel (CMOS at ~20 C)"
+    )
+    dark_current_dsnu_e_s: float = Field(
+        0.0,
+        ge=0,
+        description="dark signal non-uniformity: one-sigma pixel-to-pixel spread of the dark current, electrons per "
+        "second per pixel; each pixel's dark current is fixed, lognormal with mean dark_current_e_s and this spread "
+        "(0: uniform, the default until the on-board imaging is robust to it; CMOS image sensor datasheets quote a "
+        "DSNU of 10-50 % of the mean dark current, configs/scenarios/detector.yaml uses 30 %)",
+    )
     body_signal_e_s: float = Field(
         1.5e6,
         gt=0,
@@ -238,7 +258,81 @@ class CameraConfig(Config):
     hot_pixel_signal_e: float = Field(
         8000.0, ge=0, description="largest hot-pixel excess per frame, electrons (each a fixed 20-100 % of it)"
     )
-    hot_pixel_seed: int = Field(7, ge=0, description="seed of the hot-pixel positions and levels (fixed per sensor)")
+    hot_pixel_seed: int = Field(
+        7,
+        ge=0,
+        description="seed of the sensor's fixed maps: hot, warm and dead pixels, dead columns and the dark-current "
+        "non-uniformity (fixed per sensor: the same in every frame of every run)",
+    )
+    warm_pixel_fraction: float = Field(
+        0.0,
+        ge=0,
+        le=0.1,
+        description="fraction of the pixels that are warm: a fixed excess dark current, growing with the exposure "
+        "(0: none, the default until the on-board imaging is robust to them; CMOS image sensor datasheets allow "
+        "of order 1e-4 to 1e-3 of the pixels outside their dark-current specification and proton damage in space "
+        "adds more, configs/scenarios/detector.yaml uses 1e-3)",
+    )
+    warm_pixel_dark_current_e_s: float = Field(
+        2000.0,
+        ge=0,
+        description="largest excess dark current of a warm pixel, electrons per second (each a fixed 20-100 % of it; "
+        "40x the default mean dark current, the order of the warm-pixel tail of irradiated CMOS sensors)",
+    )
+    dead_pixel_count: int = Field(
+        0,
+        ge=0,
+        description="number of dead pixels, reading the bias only, at fixed seeded positions (count; 0 until the "
+        "on-board imaging is robust to them; CMOS datasheets allow defects of order 1e-4 of the pixels: "
+        "configs/scenarios/detector.yaml uses 100 of 1024x1024)",
+    )
+    dead_column_count: int = Field(
+        0,
+        ge=0,
+        description="number of dead columns, reading the bias only, at fixed seeded positions (count; 0 until the "
+        "on-board imaging is robust to them; column defects are the usual readout-chain failure of a CMOS sensor, "
+        "configs/scenarios/detector.yaml uses 1)",
+    )
+    cosmic_ray_flux_cm2_s: float = Field(
+        0.0,
+        ge=0,
+        description="rate of charged particles crossing the sensor, per cm^2 per second over its area "
+        "(resolution_px x pixel_pitch_um squared), from every direction (0: none, the default until the on-board "
+        "imaging is robust to them; galactic cosmic rays in interplanetary space near solar minimum are about "
+        "5 /cm^2/s, the level of configs/scenarios/detector.yaml)",
+    )
+    pixel_pitch_um: float = Field(
+        5.5,
+        gt=0,
+        description="pixel pitch, micrometres (5.5 um: the pitch of 2048x2048 scientific CMOS sensors such as the "
+        "CMOSIS CMV4000, the one psf_sigma_px assumes); sets the sensor area the cosmic rays cross",
+    )
+    cosmic_ray_depth_um: float = Field(
+        10.0,
+        gt=0,
+        description="depth of silicon that collects a particle's charge, micrometres (the epitaxial layer of a "
+        "front-illuminated image sensor, ~10 um); a particle at zenith angle theta draws a streak depth tan(theta) "
+        "long on the pixels",
+    )
+    cosmic_ray_charge_e_per_um: float = Field(
+        80.0,
+        gt=0,
+        description="charge a particle frees along its path in silicon, electrons per micrometre (most probable loss "
+        "of a minimum-ionizing particle in thin silicon, ~80 electron-hole pairs per um: Particle Data Group, "
+        "Review of Particle Physics, passage of particles through matter)",
+    )
+
+
+    @model_validator(mode="after")
+    def _defects_fit(self) -> CameraConfig:
+        n = self.resolution_px
+        if self.dead_pixel_count > n * n:
+            raise ValueError(f"dead_pixel_count: {self.dead_pixel_count} is more than the {n * n} pixels")
+        if self.dead_column_count > n:
+            raise ValueError(f"dead_column_count: {self.dead_column_count} is more than the {n} columns")
+        if self.dark_current_dsnu_e_s > 0 and self.dark_current_e_s <= 0:
+            raise ValueError("dark_current_dsnu_e_s: a non-uniformity needs a positive mean dark_current_e_s")
+        return self
 
     @model_validator(mode="after")
     def _exposure_fits_the_period(self) -> CameraConfig:
@@ -323,6 +417,8 @@ FAULT_RULES: dict[str, tuple[bool, str | None]] = {
     "plume_brightening": (False, "optional"),
     "clock_jump": (False, "required"),
     "link_outage": (False, None),
+    "cpu_overload": (False, "required"),
+    "imaging_latency": (False, "required"),
 }
 """What each fault kind takes; anything else given is refused (it would be ignored in flight)."""
 INSTANTANEOUS_FAULTS = ("clock_jump",)  # acts at start_s: its window may be empty
@@ -342,6 +438,8 @@ class FaultConfig(Config):
         "plume_brightening",
         "clock_jump",
         "link_outage",
+        "cpu_overload",
+        "imaging_latency",
     ]
     start_s: float = Field(description="true start time, s after the epoch")
     end_s: float = Field(description="true end time, s after the epoch")
@@ -349,7 +447,9 @@ class FaultConfig(Config):
     magnitude: float | None = Field(
         None,
         description="size of the fault in the unit of its kind: gyro_bias_step, deg/s added on every axis; "
-        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s",
+        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s; cpu_overload, factor (>= 1) "
+        "by which the on-board processor runs slower; imaging_latency, s added between a frame's exposure and its "
+        "arrival at the processor",
     )
 
     @field_validator("end_s")
@@ -376,19 +476,34 @@ class FaultConfig(Config):
             out.append(f"magnitude: a {self.kind} fault takes no magnitude")
         if self.kind == "plume_brightening" and self.magnitude is not None and self.magnitude <= 0:
             out.append(f"magnitude: a brightness factor must be > 0, got {self.magnitude:g}")
+        if self.kind == "cpu_overload" and self.magnitude is not None and self.magnitude < 1:
+            out.append(f"magnitude: a processor slow-down factor must be >= 1, got {self.magnitude:g}")
+        if self.kind == "imaging_latency" and self.magnitude is not None and self.magnitude < 0:
+            out.append(f"magnitude: an imaging delay must be >= 0 s, got {self.magnitude:g}")
         if self.end_s == self.start_s and self.kind not in INSTANTANEOUS_FAULTS:
             out.append(f"end_s: the window {self.start_s:g}..{self.end_s:g} s is empty: the fault would never act")
         return out
+
+
+MAX_HISTORY_REPORTS = 100_000  # a ten-day approach at one report a minute is 14,400
 
 
 class ApproachHistoryConfig(Config):
     """Time reports the spacecraft sent during the approach before the run (ground's correlation history)."""
 
     duration_s: float = Field(
-        0.0, ge=0, description="length of the approach before the run start covered by time reports, s (0: none; "
-        "the paper's approach is about ten days, 864000 s)"
+        0.0, ge=0, le=31_557_600.0, description="length of the approach before the run start covered by time reports, "
+        "s (0: none; the paper's approach is about ten days, 864000 s; at most a year)"
     )
     report_period_s: float = Field(600.0, gt=0, description="time between two time reports of the history, true s")
+
+    @model_validator(mode="after")
+    def _reports_held(self) -> ApproachHistoryConfig:
+        n = self.duration_s / self.report_period_s
+        if n > MAX_HISTORY_REPORTS:
+            raise ValueError(f"report_period_s: {n:.3g} time reports over {self.duration_s:g} s; at most "
+                             f"{MAX_HISTORY_REPORTS} (ground fits the last few hundred: a longer period loses nothing)")
+        return self
 
 
 class CentroidModelConfig(Config):
@@ -467,7 +582,12 @@ class UniverseConfig(Config):
 
     start_s: float = Field(-132.0, description="true time at which the run starts, s after the epoch")
     end_s: float = Field(288.0, description="true time at which the run ends, s after the epoch")
-    control_period_s: float = Field(0.1, gt=0, description="lock-step period of true time, s (DESIGN: 10 Hz)")
+    control_period_s: float = Field(
+        0.1,
+        gt=0,
+        description="lock-step period of true time, s (10 Hz, the on-board control rate: at the 7 deg/s peak body "
+        "rate the attitude turns 0.7 deg per period, a quarter of the 2.9 deg field of view)",
+    )
     flyby: FlybyConfig = FlybyConfig()
     uncertainty: UncertaintyConfig = UncertaintyConfig()
     bodies: BodiesConfig = BodiesConfig()

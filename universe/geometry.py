@@ -205,13 +205,14 @@ class FlybyGeometry:
         to_did = self.didymos_position_m(t_s) - r_sc
         range_dim = float(np.linalg.norm(to_dim))
         range_did = float(np.linalg.norm(to_did))
-        los_dim = to_dim / range_dim
-        los_did = to_did / range_did
         body_to_inertial = body_to_inertial_matrix(q)
-        los_body = body_to_inertial.T @ los_dim
         axes = camera_axes_body(np.asarray(boresight_body, dtype=float))
-        los_cam = axes @ los_body
         boresight_inertial = body_to_inertial @ axes[2]
+        # at a body's very centre every direction leads to it: the line of sight is taken along the boresight
+        los_dim = to_dim / range_dim if range_dim > 0.0 else boresight_inertial
+        los_did = to_did / range_did if range_did > 0.0 else boresight_inertial
+        los_body = body_to_inertial.T @ los_dim
+        los_cam = axes @ los_body
         velocity = self.spacecraft_velocity_m_s(t_s) - self.dimorphos_velocity_m_s(t_s)
         return TruthSample(
             t_s=float(t_s),

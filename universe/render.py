@@ -40,12 +40,13 @@ class PerfectPointing:
 
 @dataclass(frozen=True)
 class RenderedFrame:
-    """One frame at true time ``t_s`` (uint16 DN) with the true (col, row) of the Dimorphos and Didymos centres."""
+    """One frame at true time ``t_s`` (uint16 DN) with the true (col, row) of the Dimorphos and Didymos centres
+    (None for a centre without a pixel: behind the camera)."""
 
     t_s: float
     pixels: np.ndarray
-    dimorphos_px: tuple[float, float]
-    didymos_px: tuple[float, float]
+    dimorphos_px: tuple[float, float] | None
+    didymos_px: tuple[float, float] | None
 
 
 def pointing_rate_inertial_rad_s(

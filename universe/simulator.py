@@ -23,6 +23,7 @@ from contracts.messages import (
     TruthRecord,
 )
 from contracts.seeding import rng_streams
+from universe.camera import dark_frame
 from universe.config import FaultConfig, UniverseConfig
 from universe.dynamics import AttitudeState, SpacecraftDynamics
 from universe.geometry import FlybyGeometry
@@ -127,6 +128,7 @@ class Universe:
         self._obt_s = self.oscillator.obt_s(self.t_s)
         self.shapes = body_shapes(seed)
         self.measurement = MeasurementState()  # centroid-level fidelity: a misidentification episode under way
+        self._dark_frames: dict[float, np.ndarray] = {}
 
     def _approach_history(self) -> list[tuple[float, bytes]]:
         """The service 9 time reports of the approach before the run, with the true time each reached ground.
@@ -181,10 +183,15 @@ class Universe:
                 f"expected {self.dynamics.n_wheels}"
             )
         self.link.downlink.send(self.t_s, reply.downlink, outage=bool(self.faults.active("link_outage", self.t_s)))
-        self.torque_nm = np.asarray(reply.wheel_torque_nm, dtype=float)
+        previous_nm, self.torque_nm = self.torque_nm, np.asarray(reply.wheel_torque_nm, dtype=float)
         stuck = frozenset(f.wheel for f in self.faults.active("wheel_stuck", self.t_s) if f.wheel is not None)
         failed = frozenset(f.wheel for f in self.faults.active("wheel_failed", self.t_s) if f.wheel is not None)
-        self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s, stuck, failed)
+        # the wheels keep the previous torques until the control task's modelled finish, then take the new ones
+        delay = min(reply.actuation_delay_s, self.dt_s)
+        if delay > 0:
+            self.state = self.dynamics.step(self.state, previous_nm, delay, stuck, failed)
+        if delay < self.dt_s:
+            self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s - delay, stuck, failed)
         self.step += 1
         self.t_s = self.cfg.start_s + self.step * self.dt_s
         if reply.clock_adjust_s:  # the OBSW commanded its oscillator to step, from this period on
@@ -212,7 +219,11 @@ class Universe:
         meta, blob = (None, b"")
         if frame_requested:
             meta, blob = self._frame(exposure_s or self.cfg.camera.exposure_s)
-        return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta), blob
+        # the processor's speed and the camera interface's delay, as the OBSW node's processor model reads them
+        slowdown = float(np.prod([f.magnitude or 1.0 for f in self.faults.active("cpu_overload", self.t_s)]))
+        delay = sum(f.magnitude or 0.0 for f in self.faults.active("imaging_latency", self.t_s)) if meta else 0.0
+        return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta,
+                           cpu_slowdown=slowdown, imaging_delay_s=delay), blob
 
     def _frame(self, exposure_s: float) -> tuple[FrameMeta | None, bytes]:
         if self.faults.active("frame_lost", self.t_s):
@@ -234,6 +245,17 @@ class Universe:
         self.frame_count += 1
         return meta, b"" if pixels is None else pixels.astype("<u2", copy=False).tobytes()
 
+    def frame_at(self, t_s: float, q: tuple[float, ...], omega_rad_s: tuple[float, ...],
+                 exposure_s: float) -> np.ndarray:
+        """The pixels of a frame exposed at true time ``t_s`` in attitude ``q`` turning at ``omega_rad_s``, rendered
+        as the run renders its frames, the noise being the camera streams' next draws; the universe's own time and
+        state are left as they are. A new universe of a run's scenario, asked in frame order for the time and state
+        its truth records at each frame, gives the run's frames again, bit for bit (a replay of a record that keeps
+        frames by reference)."""
+        state = AttitudeState(q=np.asarray(q, dtype=float), omega_rad_s=np.asarray(omega_rad_s, dtype=float),
+                              wheel_speed_rad_s=self.state.wheel_speed_rad_s)
+        return render_at(self, exposure_s, t_s, state)[0]
+
     def _record_truth(self) -> None:
         ts = self.geometry.truth_sample(self.t_s, self.state.q, self._boresight, self.cfg.camera.fov_deg)
         self._truth.append(TruthRecord(
@@ -247,6 +269,17 @@ class Universe:
             los_dimorphos_inertial=_vec(ts.los_dimorphos_inertial), los_didymos_inertial=_vec(ts.los_didymos_inertial),
             dimorphos_camera=_vec(ts.los_dimorphos_camera), range_didymos_m=ts.range_to_didymos_m,
         ))
+
+    def dark_frame(self, exposure_s: float | None = None) -> np.ndarray:
+        """The run's dark frame: one frame with the shutter closed (``exposure_s``, default the camera's), uint16 DN,
+        drawn from its own random stream on the first call for that exposure and the same array on every later one.
+        What the flight software would subtract to remove bias, dark current and warm pixels."""
+        t = self.cfg.camera.exposure_s if exposure_s is None else float(exposure_s)
+        if t not in self._dark_frames:
+            frame = dark_frame(self.cfg.camera, t, self.rng["dark_frame"])
+            frame.setflags(write=False)
+            self._dark_frames[t] = frame
+        return self._dark_frames[t]
 
     def take_log(self) -> list[str]:
         """Log lines produced since the last call (fault starts and ends, lost frames)."""

@@ -5,7 +5,8 @@ from __future__ import annotations
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis.telemetry import complete_packets, decoded_telemetry
+from analysis.telemetry import decoded_telemetry
+from contracts.pus import complete_packets
 from contracts import pus
 
 APID = 0x0C1

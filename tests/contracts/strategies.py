@@ -25,6 +25,7 @@ from contracts.wire import (
     EmbeddedPacket,
     EnumCode,
     Number,
+    OctetString,
     Padded,
     RequestIdWire,
     TextWire,
@@ -74,6 +75,8 @@ def wire_strategy(wire: WireType, checks: dict[str, Any]) -> st.SearchStrategy[A
         return grid_obt
     if isinstance(wire, RequestIdWire):
         return request_ids
+    if isinstance(wire, OctetString):
+        return st.binary(min_size=wire.n, max_size=wire.n)
     if isinstance(wire, EmbeddedPacket):
         return tc_packets
     if isinstance(wire, Vector):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from contracts import pus
+from contracts import pus, sdls
 from scenario.model import scenario_from_dict
 from scenario import compose
 
@@ -14,8 +14,9 @@ def test_commanded_step_moves_obt_and_is_reported(delta_s: float) -> None:
     """OBT between the two periods around the command advances by the period plus delta; one ClockJumpEvent of delta."""
     sc = scenario_from_dict({"name": "x", "universe": {"start_s": -50.0, "end_s": -49.0}})
     u = compose.universe(sc)
-    fsw = compose.flight_software(sc)
-    tc = pus.encode_tc(pus.AdjustObt(delta_s=delta_s), sc.obsw.apid, 3)
+    keys = sdls.KeyRing.generate()
+    fsw = compose.flight_software(sc, keys)
+    tc = sdls.Sender(keys).secure(pus.encode_tc(pus.AdjustObt(delta_s=delta_s), sc.obsw.apid, 3))
     req, _ = u.begin()
     req = req.model_copy(update={"uplink": (tc,)})
     obts, tm = [req.obt_s], []

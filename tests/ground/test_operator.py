@@ -67,6 +67,34 @@ def test_timeline_upload_refuses_late_commands() -> None:
         {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},
     ]}).encode()
     # at UTC 0 with 33.4 s light time, C/A-300 s (about -130 s) is already past
-    insert, notes = timeline_request(text, "t.yaml", seg, utc_s=0.0)
-    assert len(insert.activities) == 1
+    inserts, notes = timeline_request(text, "t.yaml", seg, utc_s=0.0)
+    assert [len(i.activities) for i in inserts] == [1]
+    assert isinstance(inserts[0], pus.InsertCaRelativeActivities)
     assert any("row 1" in n for n in notes)
+
+
+def test_timeline_upload_records_every_row() -> None:
+    """Ground's upload record gives each row its resolved OBT (C/A + offset by the correlation), the sequence count
+    of its telecommand in the insert, or the reason it was refused."""
+    seg = compose.ground_segment(scenario_from_dict({"name": "x"}))
+    text = yaml.safe_dump({"commands": [
+        {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},
+        {"time": "CA-300s", "command": "stop_imaging"},
+        {"time": "+5s", "command": "set_mode", "args": {"mode": "STANDBY"}},
+    ]}).encode()
+    inserts, _ = timeline_request(text, "t.yaml", seg, utc_s=0.0)
+    (up,) = seg.uploads
+    ca_obt = seg.correlation.to_obt(seg.nominal_ca_utc_s)
+    assert up.utc_s == 0.0
+    assert up.not_before_obt_s == pytest.approx(seg.correlation.to_obt(seg.cfg.link.one_way_light_time_s
+                                                                       + seg.cfg.upload_margin_s))
+    assert [r.row for r in up.rows] == [1, 2, 3]
+    assert [r.command for r in up.rows] == ["start_imaging", "stop_imaging", "set_mode"]
+    assert [r.ca_offset_s for r in up.rows] == [-100.0, -300.0, -295.0]
+    assert [r.obt_s for r in up.rows] == pytest.approx([ca_obt - 100.0, ca_obt - 300.0, ca_obt - 295.0])
+    assert up.rows[0].refused is None and up.rows[1].refused and up.rows[2].refused
+    assert "row 2" in up.rows[1].refused and "earliest allowed OBT" in up.rows[1].refused
+    (insert,) = inserts  # C/A-relative rows only: one mission-subservice insert
+    (act,) = insert.activities
+    assert up.rows[0].seq_count == pus.request_id_of(act.tc_packet).seq_count
+    assert up.rows[1].seq_count is None and up.rows[2].seq_count is None

@@ -26,14 +26,34 @@ def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subpro
                           timeout=timeout, cwd=cwd)
 
 
-def start_nodes(out: Path, scenario: Path, realtime: bool = True) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
-    """Start the three nodes as separate processes (as on three hosts); return them, their endpoints, the run id."""
+@pytest.fixture(scope="session")
+def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """The short scenario run twice with the same seed, the second recording its frames raw (shared by the tests of
+    the run, of replay and of PUS-C conformance)."""
+    base = tmp_path_factory.mktemp("runs")
+    outs = []
+    for i, frames in ((1, "reference"), (2, "raw")):
+        out = base / f"run{i}"
+        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), "--record-frames", frames, timeout=300)
+        assert r.returncode == 0, f"run {i} failed:\n{r.stdout}\n{r.stderr}\n" + "\n".join(
+            f"--- {n}.log\n{(out / f'{n}.log').read_text()[-3000:]}" for n in ("universe", "obsw", "ground")
+            if (out / f"{n}.log").exists())
+        outs.append(out)
+    return outs[0], outs[1]
+
+
+def start_nodes(out: Path, scenario: Path, realtime: bool = True, credentials: Path | None = None
+                ) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
+    """Start the three nodes as separate processes (as on three hosts), over TLS with the identities in
+    ``credentials`` (plain TCP, ``--insecure``, when None); return them, their endpoints, the run id."""
     from contracts.bus import free_tcp_port
 
     ports = {n: free_tcp_port() for n in ("universe", "obsw", "ground")}
-    ep = {n: f"tcp/127.0.0.1:{p}" for n, p in ports.items()}
+    ep = {n: f"{'tls' if credentials else 'tcp'}/127.0.0.1:{p}" for n, p in ports.items()}
     run_id = f"test-{ports['universe']}"
-    common = ["--config", str(scenario), "--run-id", run_id, "--out", str(out)]
+    security = ["--credentials", str(credentials)] if credentials else ["--insecure", "--tc-keys",
+                                                                          str(_insecure_keys(out))]
+    common = ["--config", str(scenario), "--run-id", run_id, "--out", str(out), *security]
     extra = {
         "universe": ["--listen", ep["universe"], *(["--realtime"] if realtime else [])],
         "obsw": ["--listen", ep["obsw"], "--connect", ep["universe"]],
@@ -44,6 +64,16 @@ def start_nodes(out: Path, scenario: Path, realtime: bool = True) -> tuple[dict[
         with open(out / f"{n}.log", "wb") as log:
             procs[n] = subprocess.Popen([sys.executable, "-m", n, *common, *a], stdout=log, stderr=subprocess.STDOUT)
     return procs, ep, run_id
+
+
+def _insecure_keys(out: Path) -> Path:
+    """A TC key file beside the run folder (TCs are authenticated on a plain-TCP bus too)."""
+    from contracts import sdls
+
+    path = out.parent / f"{out.name}-tc-keys.json"
+    if not path.exists():
+        sdls.write_key_file(path, sdls.KeyRing.generate())
+    return path
 
 
 def stop_nodes(procs: dict[str, subprocess.Popen[bytes]]) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from contextlib import ExitStack
 import signal
 import subprocess
 import sys
@@ -12,7 +13,8 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from contracts.bus import Keys, session_config
+from contracts.bus import Keys, TlsIdentity, access_control, session_config
+from flyby.credentials import write_credentials
 from tests.integration.conftest import DATA, start_nodes, stop_nodes
 
 pytestmark = pytest.mark.integration
@@ -53,11 +55,20 @@ def test_ctrl_c_stops_everything(tmp_path: Path) -> None:
 
 def test_garbage_messages_are_counted_and_survived(tmp_path: Path) -> None:
     """Undecodable messages on every key of the lock-step are logged and counted; the run still completes."""
-    procs, ep, run_id = start_nodes(tmp_path, DATA / "short.yaml", realtime=False)
+    creds = tmp_path / "credentials"
+    write_credentials(creds)
+    procs, ep, run_id = start_nodes(tmp_path, DATA / "short.yaml", realtime=False, credentials=creds)
     keys = Keys(run_id)
+    # each key from the role allowed to publish on it (another role's puts are refused by access control)
+    roles = {"universe": (keys.step, keys.ground_step), "obsw": (keys.reply,), "ground": (keys.ground_reply,)}
     try:
-        with zenoh.open(session_config(connect=list(ep.values()))) as s:
-            pubs = [s.declare_publisher(k) for k in (keys.step, keys.reply, keys.ground_step, keys.ground_reply)]
+        with ExitStack() as stack:
+            pubs = []
+            for role, published in roles.items():
+                conf = session_config(connect=list(ep.values()), tls=TlsIdentity.in_folder(creds, role),
+                                      acl=access_control(keys))
+                s = stack.enter_context(zenoh.open(conf))
+                pubs += [s.declare_publisher(k) for k in published]
             deadline = time.monotonic() + 120
             while procs["universe"].poll() is None:
                 assert time.monotonic() < deadline, "the run did not end"

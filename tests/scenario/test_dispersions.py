@@ -11,6 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from contracts.errors import ScenarioError
+from contracts.sdls import KeyRing
 from scenario import compose
 from scenario.dispersions import Dispersion, draw, dispersed_run, run_seeds
 from scenario.model import Scenario, scenario_from_dict
@@ -218,11 +219,12 @@ def test_the_drawn_value_reaches_the_component(path: str, distribution: dict[str
         drawn = [run.values[f"{path}[{i}]"] for i in range(3)]
     else:
         drawn = run.values[path]
-    got, expected = inside(compose.flight_software(sc), compose.universe(sc), compose.ground_segment(sc), drawn, sc)
+    got, expected = inside(compose.flight_software(sc, KeyRing.derived(sc.seed)), compose.universe(sc),
+                           compose.ground_segment(sc), drawn, sc)
     norm = np.linalg.norm(np.atleast_1d(np.asarray(expected, dtype=float)))
     np.testing.assert_allclose(np.asarray(got, dtype=float), np.asarray(expected, dtype=float), rtol=1e-9,
                                atol=1e-12 * max(norm, 1.0))
     nominal = Scenario(name="mc", seed=sc.seed)  # the value differs from the nominal one: the test can fail
-    n_got, _ = inside(compose.flight_software(nominal), compose.universe(nominal), compose.ground_segment(nominal),
-                      drawn, nominal)
+    n_got, _ = inside(compose.flight_software(nominal, KeyRing.derived(nominal.seed)), compose.universe(nominal),
+                      compose.ground_segment(nominal), drawn, nominal)
     assert not np.allclose(np.asarray(n_got, dtype=float), np.asarray(got, dtype=float), rtol=1e-12, atol=0)

@@ -35,7 +35,7 @@ def test_a_declared_knowledge_error_reaches_the_flight_software_and_not_the_univ
     sc = scenario_from_dict({"name": "k", "knowledge_errors": ["obsw.camera.fov_deg", "obsw.inertia_kgm2"],
                              "obsw": {"camera": {"fov_deg": 3.0},
                                       "inertia_kgm2": [[0.16, 0, 0], [0, 0.12, 0], [0, 0, 0.06]]}})
-    fsw, sim = compose.flight_software(sc), compose.universe(sc)
+    fsw, sim = compose.flight_software(sc, None), compose.universe(sc)
     assert fsw.camera.fov_deg == 3.0 and sim.cfg.camera.fov_deg == 2.9
     assert fsw.inertia[0, 0] == 0.16 and sim.cfg.spacecraft.inertia_kgm2[0][0] == 0.152
 

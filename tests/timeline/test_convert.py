@@ -84,7 +84,7 @@ def test_obt_tag_is_independent_of_the_correlation(offset: float, drift: float, 
     """An OBT tag resolves to itself whatever the correlation."""
     out = resolved_commands(Timeline(entries=(_entry(ObtTag(obt_s=obt)),)), Correlation.exact(offset, drift),
                             epoch_utc=EPOCH)
-    assert out[0] == (obt, None, REG.command("stop_imaging"))
+    assert out[0] == (obt, None, REG.command("stop_imaging"), 1)
 
 
 @given(
@@ -124,7 +124,7 @@ mixed_tags = st.one_of(
 @given(offsets, drifts, ca_utcs, st.lists(mixed_tags, min_size=1, max_size=12))
 @settings(max_examples=100)
 def test_resolved_order_is_tag_order(offset: float, drift: float, ca_utc: float, tag_list: list[object]) -> None:
-    """Resolved commands come out sorted by OBT, all present, equal tags in file order."""
+    """Resolved commands come out sorted by OBT, all present, equal tags in file order, each with its file row."""
     if isinstance(tag_list[0], AfterPreviousTag):
         tag_list[0] = ObtTag(obt_s=0.0)
     # report_time(count=row) marks each entry with its file row.
@@ -135,6 +135,7 @@ def test_resolved_order_is_tag_order(offset: float, drift: float, ca_utc: float,
     out = resolved_commands(tl, Correlation.exact(offset, drift), epoch_utc=EPOCH, ca_utc_s=ca_utc)
     rows = [r.command.args["count"] for r in out]
     assert sorted(rows) == list(range(1, len(tag_list) + 1))
+    assert [r.row for r in out] == rows
     for a, b, ra, rb in zip(out, out[1:], rows, rows[1:]):
         assert a.obt_s < b.obt_s or (a.obt_s == b.obt_s and ra < rb)
 

@@ -13,7 +13,8 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from flyby.cli import main as flyby_main
-from scenario.model import Scenario
+from scenario.model import Scenario, load_scenario
+from universe.camera import sensor_defects
 from universe.config import BodiesConfig, FlybyConfig, UniverseConfig
 from universe.geometry import FlybyGeometry
 from universe.render import (
@@ -177,3 +178,20 @@ def test_flyby_render_defaults_to_the_run_at_the_frame_period(tmp_path: Path) ->
     out = tmp_path / "frames"
     assert flyby_main(["render", str(path), "--out", str(out), "--size", "64"]) == 0
     assert len(list(out.glob("frame_*.png"))) == 3
+
+
+def test_the_detector_scenario_renders_a_valid_frame_at_closest_approach() -> None:
+    """configs/scenarios/detector.yaml (every detector effect on at its realistic level): at C/A the frame has its
+    size and bit depth, Dimorphos lit on the boresight, the dead column at the bias; the scenario is the same
+    flyby as the nominal scenario but for the camera."""
+    root = Path(__file__).parents[2] / "configs" / "scenarios"
+    detector, nominal = load_scenario(root / "detector.yaml"), load_scenario(root / "nominal.yaml")
+    cam = detector.universe.camera
+    assert cam.cosmic_ray_flux_cm2_s > 0 and cam.dark_current_dsnu_e_s > 0 and cam.warm_pixel_fraction > 0
+    assert cam.dead_pixel_count > 0 and cam.dead_column_count > 0
+    assert detector.universe.model_copy(update={"camera": nominal.universe.camera}) == nominal.universe
+    ca_s = detector.universe.flyby.ca_time_s
+    frame = PerfectPointingCamera(compose.universe(detector)).frame_at(ca_s).pixels
+    assert frame.dtype == np.uint16 and frame.shape == (1024, 1024) and int(frame.max()) <= 4095
+    assert frame[508:516, 508:516].mean() > cam.dark_offset_dn + 200
+    assert np.all(frame[:, sensor_defects(cam).dead_columns] == round(cam.dark_offset_dn))

@@ -12,10 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from contracts.messages import FrameRequest, StepReply, StepRequest, TruthRecord
+from contracts.messages import FrameRequest, GroundStep, StepReply, StepRequest, TruthRecord, decode, encode
 from scenario.model import Scenario
 from universe.camera import Body, render_frame
 from universe.config import CameraConfig, PlumeConfig, SpacecraftConfig, UniverseConfig
+from universe.dynamics import AttitudeState
 from universe.scene import scene_at
 from universe.shapes import ShapeModel
 from universe.simulator import pointing_attitude
@@ -80,6 +81,26 @@ def test_same_seed_gives_identical_requests_frames_and_truth() -> None:
     # a different seed changes the noise: the comparison above is sensitive to it
     c = drive(compose.universe(scenario(seed=6, start_s=140.0, end_s=141.2)), mixed_replies(12))
     assert [req.sensors for req, _ in c[0]] != [req.sensors for req, _ in a[0]]
+
+
+def test_frame_at_renders_a_run_s_frames_again_from_its_truth() -> None:
+    """A new universe of the same scenario, asked in frame order for each frame's truth (time, attitude, rate), gives
+    the run's frames bit for bit, and leaves its own time and state alone; out of order, the noise differs."""
+    # 2000 cosmic rays per cm^2 and s: about 6 a frame, so their stream is drawn from too
+    sc = scenario(seed=5, start_s=140.0, end_s=141.2, camera={"cosmic_ray_flux_cm2_s": 2000.0})
+    requests, truth, _ = drive(compose.universe(sc), mixed_replies(12))
+    frames = [(req.frame, blob) for req, blob in requests if req.frame is not None]
+    at = {r.frame_id: r for r in truth if r.frame_id is not None}
+    again = compose.universe(sc)
+    t0, q0 = again.t_s, again.state.q.copy()
+    for meta, blob in frames:
+        r = at[meta.frame_id]
+        assert again.frame_at(r.t_s, r.q, r.omega_rad_s, meta.exposure_s).astype("<u2").tobytes() == blob
+    assert again.t_s == t0 and np.array_equal(again.state.q, q0)
+    swapped = compose.universe(sc)
+    m1, b1 = frames[1]
+    r1 = at[m1.frame_id]
+    assert swapped.frame_at(r1.t_s, r1.q, r1.omega_rad_s, m1.exposure_s).astype("<u2").tobytes() != b1
 
 
 @settings(max_examples=15, deadline=None)
@@ -227,3 +248,61 @@ def test_frame_shows_dimorphos_where_its_truth_pixel_says() -> None:
     # the period's motion of the line of sight across the fixed camera, closed form for a straight line: v b / r^2
     motion_px = 7000.0 * 55_000.0 / range_m**2 * 0.1 * F_1024
     assert motion_px > 2 * r_max_px
+
+
+in_ball4 = st.tuples(*[st.floats(-1.0, 1.0)] * 4).filter(lambda v: 0.01 < sum(c * c for c in v) <= 1.0)
+in_ball3 = st.tuples(*[st.floats(-1.0, 1.0)] * 3).filter(lambda v: sum(c * c for c in v) <= 1.0)
+
+
+def finite_or_absent(record: TruthRecord) -> bool:
+    """Every number of a truth record is finite; optional ones may be absent (None)."""
+    values: list[object] = []
+    for v in record.model_dump().values():
+        values.extend(v if isinstance(v, (tuple, list)) else [v])
+    return all(v is None or isinstance(v, (bool, int)) or math.isfinite(v) for v in values)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    q=in_ball4,
+    rate=in_ball3,
+    t0_s=st.floats(-150.0, 280.0),
+    ca_km=st.sampled_from([55.0, 2.0, 1.19, 0.3, 0.05]),
+)
+def test_any_attitude_and_rate_gives_valid_frames_and_decodable_finite_truth(q, rate, t0_s, ca_km) -> None:
+    """Attitudes uniform over rotations and rates up to 1 rad/s, set on the universe's state on a flyby passing from
+    55 km down to inside Didymos: every frame on the bus has its size and bit depth, and every truth record is finite
+    or absent and survives the bus (encode and decode of the ground step)."""
+    sc = scenario(seed=2, start_s=t0_s, end_s=t0_s + 0.4, flyby={"ca_distance_km": ca_km},
+                  uncertainty={"ca_distance_sigma_km": ca_km / 10})  # the on-board grid must fit
+    u = compose.universe(sc)
+    u.begin()
+    attitude = np.asarray(q) / np.linalg.norm(q)
+    for k in range(3):
+        u.state = AttitudeState(q=attitude, omega_rad_s=np.asarray(rate), wheel_speed_rad_s=np.zeros(3))
+        request, blob = u.advance(reply(k, frame=True))
+        meta = request.frame
+        assert meta is not None and len(blob) == 2 * meta.width * meta.height
+        pixels = np.frombuffer(blob, dtype="<u2")
+        assert meta.width == meta.height == 1024 and int(pixels.max()) <= 4095
+    step = u.ground_step()
+    decoded, _ = decode(GroundStep, encode(step))
+    assert decoded.truth == step.truth and len(step.truth) == 4
+    assert all(finite_or_absent(r) for r in decoded.truth)
+    assert sum(r.frame_id is not None for r in decoded.truth) == 3
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.03, 0.1, 0.25])
+def test_new_torques_take_effect_after_the_actuation_delay(delay_s: float) -> None:
+    """Without friction, each rotor's absolute angular momentum grows over the period by the new torque times the
+    part of the period after the actuation delay (the previous torque, zero, acts before; a delay beyond the period
+    leaves it all to the previous torque)."""
+    wheels = {"viscous_friction_nms": 0.0, "coulomb_friction_nm": 0.0}
+    sc = scenario(start_s=140.0, end_s=140.3,
+                  spacecraft=SpacecraftConfig(initial_attitude_error_deg=0.0, wheels=wheels))
+    u = compose.universe(sc)
+    u.begin()
+    tau = 0.005
+    u.advance(StepReply(step=0, wheel_torque_nm=(tau,) * 3, actuation_delay_s=delay_s))
+    rotor = u.dynamics.rotor_inertia_kgm2 * (np.asarray(u.state.omega_rad_s) + np.asarray(u.state.wheel_speed_rad_s))
+    assert rotor == pytest.approx([tau * (0.1 - min(delay_s, 0.1))] * 3, abs=1e-12)

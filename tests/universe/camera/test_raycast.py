@@ -6,27 +6,28 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from universe.camera import Body, _body_box, _BodyCaster, _BodyView, focal_length_px, principal_point_px
+from universe.camera import Body, focal_length_px, principal_point_px
+from universe.camera.bodies import BodyCaster, BodyView, body_box
+from universe.camera.raycast import cast_body
 from universe.config import CameraConfig
-from universe.raycast import cast_body
 from universe.shapes import ShapeModel
 
 CFG = CameraConfig(phase_slope_mag_deg=0.0)
 F = focal_length_px(CFG)
 CX, CY = principal_point_px(CFG)
-SPREAD = {4: 1.7, 2: 3.0}  # camera._SMOOTH_SPREAD_CELLS: the thresholds the camera uses
+SPREAD = {4: 1.7, 2: 3.0}  # bodies._SMOOTH_SPREAD_CELLS: the thresholds the camera uses
 
 
-def caster_for(body: Body, centre_c: np.ndarray, sun_c: np.ndarray) -> tuple[_BodyCaster, tuple[int, int, int, int]]:
+def caster_for(body: Body, centre_c: np.ndarray, sun_c: np.ndarray) -> tuple[BodyCaster, tuple[int, int, int, int]]:
     """The camera's per-frame tables of ``body`` seen at ``centre_c`` (camera frame, camera axes = inertial)."""
     r_max = body.radius_m * body.shape.max_radius()
-    box = _body_box(centre_c, r_max, F, CX, CY, CFG.resolution_px, 2)
+    box = body_box(centre_c, r_max, F, CX, CY, CFG.resolution_px, 2)
     assert box is not None
-    view = _BodyView(0, body, centre_c, r_max, box, (0.0, 0.0))
-    return _BodyCaster(view, np.eye(3), sun_c, CFG, F, CX, CY), box
+    view = BodyView(0, body, centre_c, r_max, box, (0.0, 0.0))
+    return BodyCaster(view, np.eye(3), sun_c, CFG, F, CX, CY), box
 
 
-def cast(caster: _BodyCaster, box: tuple[int, int, int, int], step: int, window: bool = True):
+def cast(caster: BodyCaster, box: tuple[int, int, int, int], step: int, window: bool = True):
     """Depth (m, inf off the body; 0 where interpolated outside the window) and signal (e-/s) over ``box``."""
     r0, r1, c0, c1 = box
     depth = np.full((r1 - r0, c1 - c0), np.inf, dtype=np.float32)
@@ -80,7 +81,8 @@ def test_sphere_depth_and_shading_match_the_closed_form(step: int, offset_px: tu
 def test_quadtree_matches_casting_every_pixel_on_an_irregular_body(seed: int, diameter_px: float) -> None:
     """An irregular body: the 2 px and 4 px quadtrees hit the same pixels as casting every pixel, with the same light
     to within a few per cent of the peak per pixel and 0.5 % in total, and the same depth within a pixel's width but
-    for a few grazing rays on the limb (where either may find a surface behind a bump: see ``universe.raycast``)."""
+    for a few grazing rays on the limb (where either may find a surface behind a bump: see
+    ``universe.camera.raycast``)."""
     rng = np.random.default_rng(seed)
     radius = 390.0
     rng_m = 2 * radius * F / diameter_px
@@ -128,3 +130,37 @@ def test_a_ray_outside_the_bounding_sphere_never_hits() -> None:
     rows, cols = np.mgrid[r0:r1, c0:c1]
     off_axis_m = np.hypot(cols - CX, rows - CY) / F * rng_m
     assert not np.any(np.isfinite(depth) & (off_axis_m > caster.geometry[5] * 1.001))
+
+
+def test_from_inside_the_bounding_sphere_rays_meet_the_closed_form_ellipsoid() -> None:
+    """A camera inside an ellipsoid's bounding sphere, outside its surface, 77 m from it and looking at it 40 deg off
+    its centre: every pixel hits, with the closed-form ray/ellipsoid depth (to 1 %: the shape tables' resolution) and
+    lunar-Lambert signal, whether cast at every pixel or as the camera's quadtree."""
+    radius = 390.0
+    shape = ShapeModel(irregularity=0.0, axis_ratios=(0.8, 1.0, 1.25))
+    semi = radius * np.array([0.8, 1.0, 1.25]) / np.prod([0.8, 1.0, 1.25]) ** (1 / 3)
+    centre = 420.0 * np.array([np.sin(np.radians(40.0)), 0.0, np.cos(np.radians(40.0))])
+    assert np.sum((centre / semi) ** 2) > 1.0 and np.linalg.norm(centre) < radius * shape.max_radius()
+    sun = np.array([-0.6, -0.3, -1.0]) / np.linalg.norm([-0.6, -0.3, -1.0])
+    caster, box = caster_for(Body(centre, radius, shape), centre, sun)
+    r0, r1, c0, c1 = box
+    rows, cols = np.mgrid[r0:r1, c0:c1].astype(float)
+    d = np.stack([(cols - CX) / F, (rows - CY) / F, np.ones_like(cols)], axis=-1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    # closed form: x = t d on ((x - c) / semi)^2 = 1, the nearer root
+    a = np.sum((d / semi) ** 2, -1)
+    b = -2 * np.sum(d * centre / semi**2, -1)
+    c = np.sum((centre / semi) ** 2) - 1
+    t = (-b - np.sqrt(b * b - 4 * a * c)) / (2 * a)
+    n = (t[..., None] * d - centre) / semi**2
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    mu0, mu = np.clip(n @ sun, 0, None), np.clip(-np.sum(n * d, -1), 0, None)
+    w = CFG.lommel_seeliger_weight
+    expected = caster.geometry[7] * (w * 2 * mu0 / np.maximum(mu0 + mu, 1e-12) + (1 - w) * mu0)
+    assert 70.0 < t.min() and t.max() < 85.0
+    for step in (1, 4):
+        depth, sig = cast(caster, box, step)
+        assert np.all(np.isfinite(depth))
+        assert np.max(np.abs(depth - t) / t) < 0.01
+        err = np.abs(sig - expected) / expected.max()
+        assert np.median(err) < 1e-3 and np.percentile(err, 99) < 5e-3

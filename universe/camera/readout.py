@@ -1,6 +1,6 @@
 """Compiled detector readout: scene electrons and per-pixel normal codes to digital numbers, in one pass (Numba).
 
-The camera's noise model (``universe.camera``): a pixel holding ``s`` scene electrons (clamped at 0) reads
+The camera's noise model (``universe.camera.detector``): a pixel holding ``s`` scene electrons (clamped at 0) reads
 ``offset + dark/g + (s + sqrt(s + dark + read^2) z) / g`` DN, rounded to nearest (ties to even) and clipped to
 [0, max_dn], where ``z`` is the standard normal deviate of the pixel's 16-bit code. One fused loop reads each input
 once and writes the frame once (the OpenCV element-wise passes it replaces made six passes over the frame).

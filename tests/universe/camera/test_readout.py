@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from universe.camera import NORMAL_QUANTILES, normal_codes
-from universe.readout import dark_frame, digitise
+from universe.camera.readout import dark_frame, digitise
 
 
 def reference_dn(signal_e: np.ndarray, codes: np.ndarray, var0: float, inv_g: float, bias: float, max_dn: int):

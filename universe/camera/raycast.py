@@ -2,13 +2,17 @@
 
 Theory of operation: a body is described, per frame, in its view frame (e3 from the body centre to the camera) by
 a table of radius and view-frame normal over the stereographic coordinates of the direction from the centre
-(``universe.camera._shape_table``) and by its limb: the largest perspective-projected radius per image polar-angle
-bin (``universe.camera._limb_radius``). A ray through a pixel centre is tested against the limb first (outside it
-the ray misses), then its front intersection with ``|x| = r(x / |x|)`` is found by safeguarded Newton steps along
-the ray, bilinear look-ups in the table giving the radius and the normal, and the lunar-Lambert law gives the
-signal there. Each ray stops as soon as it is on the surface, which array code could not do without compacting
-its arrays every step. ``cast_body`` runs the quadtree over a body's box (see its docstring), so that only the
-cells where the shading is not smooth are cast at every pixel.
+(``universe.camera.bodies._shape_table``) and by its limb: the largest perspective-projected radius per image
+polar-angle bin (``universe.camera.bodies._limb_radius``). A ray through a pixel centre is tested against the limb
+first (outside it the ray misses), then its front intersection with ``|x| = r(x / |x|)`` is found by safeguarded
+Newton steps along the ray, bilinear look-ups in the table giving the radius and the normal, and the
+lunar-Lambert law gives the signal there. Each ray stops as soon as it is on the surface, which array code could
+not do without compacting its arrays every step. ``cast_body`` runs the quadtree over a body's box (see its
+docstring), so that only the cells where the shading is not smooth are cast at every pixel.
+
+A camera inside the bounding sphere (but outside the surface) has no silhouette to test against: each ray then
+marches from the camera across the bounding sphere in ``NEAR_STEPS`` steps to its first point inside the surface
+and refines the crossing from there. Outside the bounding sphere, a ray pointing away from the body centre misses.
 
 Known limit: a ray grazing the limb through a bump can pass the bump's front surface between two Newton steps and
 stop on the surface behind it: its depth is then too far (by up to the body's size) while its shading is that of a
@@ -27,6 +31,7 @@ from numba import njit
 
 TABLE_S = 1.5  # stereographic half-extent of the shape tables: directions up to 112 deg from the camera direction
 RAY_ITERATIONS = 6  # safeguarded Newton steps at most; rays on the surface stop earlier (most take 1 to 3)
+NEAR_STEPS = 64  # steps across the bounding sphere searching for the surface from a camera inside that sphere
 _FLOOR = 1e-3  # lower bound of the stereographic denominator and of n.x, relative to |x|
 
 
@@ -61,6 +66,15 @@ def _lookup(table: np.ndarray, u: float, v: float) -> tuple[float, float, float,
     )
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _gap(table: np.ndarray, x1: float, x2: float, x3: float, bb: float, h: float, tiny: float, scale: float,
+         off: float) -> float:
+    """``|x| - r(x / |x|)`` (m) at the ray point x = q - h d (``bb`` = |q|^2): positive outside the surface."""
+    qn = math.sqrt(bb + h * h) + tiny
+    inv_den = scale / max(qn + x3, _FLOOR * qn)
+    return qn - _lookup(table, x1 * inv_den + off, x2 * inv_den + off)[0]
+
+
 @njit(cache=True, nogil=True)
 def _cast_batch(
     rows: np.ndarray, cols: np.ndarray, guesses: np.ndarray, n: int, table: np.ndarray, limb: np.ndarray, ray: tuple,
@@ -73,14 +87,15 @@ def _cast_batch(
     The rays of a whole quadtree level are cast here in one loop: a function taking arrays, called per ray, would
     pay reference counting on every call.
     """
-    dist, inv_f, cx, cy, r_min, r_max, radius, signal_scale, wls, warm_shift = ray[:10]
-    b00, b01, b02, b10, b11, b12, sun1, sun2, sun3 = ray[10:]
+    dist, inv_f, cx, cy, r_min, r_max, radius, signal_scale, wls, warm_shift, near = ray[:11]
+    b00, b01, b02, b10, b11, b12, b20, b21, b22, sun1, sun2, sun3 = ray[11:]
     n_side = table.shape[0]
     scale = (n_side - 1) / (2.0 * TABLE_S)
     off = TABLE_S * scale
     tiny = 1e-9 * dist
     tol = 1e-4 * radius
     bins = limb.shape[0] - 1
+    inside_bound = near > 0.5
     for k in range(n):
         row, col, guess = rows[k], cols[k], guesses[k]
         # divisions and square roots are most of the cost: each one below is needed, and none is repeated
@@ -94,31 +109,58 @@ def _cast_batch(
         if bb >= r_max * r_max:
             hits[k] = False
             continue
-        # silhouette: inside the body's projected limb radius rho_limb at the ray's polar angle in the view plane,
-        # where the ray crosses it at rho^2 = bb / cos^2
-        pos = _pseudo_angle(d1, d2) * (bins / 4.0)
-        j = min(int(pos), bins - 1)
-        rho_limb = limb[j] + (limb[j + 1] - limb[j]) * (pos - j)
-        cos2 = 1.0 - sin2
-        if bb > rho_limb * rho_limb * cos2:
-            hits[k] = False
-            continue
-        d3 = -math.sqrt(cos2)
-        # the ray passes the centre at q = (-dist d3 d1, -dist d3 d2, dist sin2); h counts the distance from there
-        # towards the camera
-        q1, q2, q3 = -dist * d3 * d1, -dist * d3 * d2, dist * sin2
-        hi = math.sqrt(r_max * r_max - bb)
-        inner = bb < r_min * r_min
-        # inside the smallest radius the front root lies between that sphere and the bounding one
-        lo = math.sqrt(r_min * r_min - bb) if inner else -hi
-        if not math.isnan(guess):
-            h = min(max(-dist * d3 - guess + warm_shift, lo), hi)
-        elif inner:
-            # first guess: a sphere as wide as the limb in this direction
-            h = min(max(math.sqrt(max(rho_limb * rho_limb - bb, 0.0)), lo), hi)
-        else:
-            # off the inner sphere the front root is reached monotonically from the camera side: start there
+        away = b20 * dx + b21 * dy + b22 >= 0.0  # the ray points away from the centre (its e3 component is >= 0)
+        if inside_bound:
+            # the camera is inside the bounding sphere (not inside the surface): no silhouette; march from the camera
+            # along the ray to the first point inside the surface, then refine between it and the previous step
+            d3 = (b20 * dx + b21 * dy + b22) * inv
+            q1, q2, q3 = -dist * d3 * d1, -dist * d3 * d2, dist * sin2
+            chord = math.sqrt(r_max * r_max - bb)
+            top = min(chord, -dist * d3)  # h of the camera: only points in front of it (smaller h) are seen
+            lo = -chord
+            dh = (top - lo) / NEAR_STEPS
+            hi = top
+            found = False
+            for s in range(1, NEAR_STEPS + 1):
+                h = top - s * dh
+                if _gap(table, q1 - h * d1, q2 - h * d2, q3 - h * d3, bb, h, tiny, scale, off) <= 0.0:
+                    lo = h
+                    found = True
+                    break
+                hi = h
+            if not found:
+                hits[k] = False
+                continue
             h = hi
+        else:
+            if away:  # the camera, outside the bounding sphere, is then the ray's closest point to the body
+                hits[k] = False
+                continue
+            # silhouette: inside the body's projected limb radius rho_limb at the ray's polar angle in the view plane,
+            # where the ray crosses it at rho^2 = bb / cos^2
+            pos = _pseudo_angle(d1, d2) * (bins / 4.0)
+            j = min(int(pos), bins - 1)
+            rho_limb = limb[j] + (limb[j + 1] - limb[j]) * (pos - j)
+            cos2 = 1.0 - sin2
+            if bb > rho_limb * rho_limb * cos2:
+                hits[k] = False
+                continue
+            d3 = -math.sqrt(cos2)
+            # the ray passes the centre at q = (-dist d3 d1, -dist d3 d2, dist sin2); h counts the distance from there
+            # towards the camera
+            q1, q2, q3 = -dist * d3 * d1, -dist * d3 * d2, dist * sin2
+            hi = math.sqrt(r_max * r_max - bb)
+            inner = bb < r_min * r_min
+            # inside the smallest radius the front root lies between that sphere and the bounding one
+            lo = math.sqrt(r_min * r_min - bb) if inner else -hi
+            if not math.isnan(guess):
+                h = min(max(-dist * d3 - guess + warm_shift, lo), hi)
+            elif inner:
+                # first guess: a sphere as wide as the limb in this direction
+                h = min(max(math.sqrt(max(rho_limb * rho_limb - bb, 0.0)), lo), hi)
+            else:
+                # off the inner sphere the front root is reached monotonically from the camera side: start there
+                h = hi
         m1 = m2 = m3 = 0.0
         for _ in range(RAY_ITERATIONS):
             x1, x2, x3 = q1 - h * d1, q2 - h * d2, q3 - h * d3
@@ -200,15 +242,16 @@ def cast_body(
     ``window`` (r0, r1, c0, c1 in the box) and 0 elsewhere (only whether they hit is kept).
 
     ``basis`` (3, 3) holds the view axes in camera components as rows, ``sun_v`` the Sun direction in the view frame;
-    ``geometry`` is (dist, 1 / f, cx, cy, r_min, r_max, radius, signal_scale, lommel_seeliger_weight, warm_shift).
+    ``geometry`` is (dist, 1 / f, cx, cy, r_min, r_max, radius, signal_scale, lommel_seeliger_weight, warm_shift,
+    near): ``near`` 1 when the camera is inside the bounding sphere (``limb`` then unused), else 0.
     Each level's rays are collected, cast in one ``_cast_batch`` and scattered; interpolated cells are filled last.
     """
     h, w = depth.shape
     # the per-ray constants as a tuple of floats, passed by value
     ray = (
         geometry[0], geometry[1], geometry[2], geometry[3], geometry[4], geometry[5], geometry[6], geometry[7],
-        geometry[8], geometry[9], basis[0, 0], basis[0, 1], basis[0, 2], basis[1, 0], basis[1, 1], basis[1, 2],
-        sun_v[0], sun_v[1], sun_v[2],
+        geometry[8], geometry[9], geometry[10], basis[0, 0], basis[0, 1], basis[0, 2], basis[1, 0], basis[1, 1],
+        basis[1, 2], basis[2, 0], basis[2, 1], basis[2, 2], sun_v[0], sun_v[1], sun_v[2],
     )
     hn2, wn2 = h // 2 + 3, w // 2 + 3  # the 2 px grid: node (i, j) on pixel (2 i, 2 j); extra nodes close the cells
     hn4, wn4 = h // 4 + 2, w // 4 + 2  # the 4 px grid
@@ -363,7 +406,7 @@ def warm_up() -> None:
     table[..., 0] = 1.0
     table[..., 3] = 1.0
     limb = np.ones(65, dtype=np.float32)
-    geometry = np.array([100.0, 1e-3, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5, 0.025])
+    geometry = np.array([100.0, 1e-3, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.5, 0.025, 0.0])
     for step in (1, 2, 4):
         depth = np.full((6, 6), np.inf, dtype=np.float32)
         sig = np.zeros((6, 6), dtype=np.float32)
