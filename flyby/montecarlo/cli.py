@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, get_args
 
 from contracts.errors import ScenarioError
-from contracts.exitcodes import EXIT_CONFIG, EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK
+from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG, EXIT_INTERRUPTED, EXIT_OK
 from flyby.montecarlo.store import STORE_NAME
 from universe.config import UniverseConfig
 
@@ -86,7 +86,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
             and all(stored.get(k) == v for k, v in result.figures.items())
             and values.get(args.replay, {}) == result.values)
     print(f"run {args.replay}: the replay {'gives' if same else 'DIFFERS from'} the stored figures")
-    return EXIT_OK if same else EXIT_INTERNAL
+    return EXIT_OK if same else EXIT_CHECK_FAILED
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -162,7 +162,7 @@ def _run_in(store: ResultStore, campaign: Campaign, args: argparse.Namespace) ->
     if interrupted:
         print("flyby mc: interrupted; the same command with --resume continues it", file=sys.stderr)
         return EXIT_INTERRUPTED
-    return EXIT_OK if passed == len(rows) else EXIT_INTERNAL
+    return EXIT_OK if passed == len(rows) else EXIT_CHECK_FAILED
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
