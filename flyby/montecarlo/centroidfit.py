@@ -123,7 +123,8 @@ def frame_samples(scenario: Scenario, truth: list[TruthRecord], navigation: list
         dim = Body(centre_inertial_m=np.asarray(r.los_dimorphos_inertial) * r.range_m,
                    radius_m=u.bodies.dimorphos_diameter_m / 2)
         scene = Scene(camera_position_m=np.zeros(3), q_body_to_inertial=np.asarray(r.q), body_rate_rad_s=np.zeros(3),
-                      exposure_s=u.camera.exposure_s, bodies=(did, dim), sun_direction=np.asarray(u.bodies.sun_direction))
+                      exposure_s=u.camera.exposure_s, bodies=(did, dim),
+                      sun_direction=np.asarray(u.bodies.sun_direction))
         p_did, r_did, _, _ = body_view(scene, u.camera, 0)
         p_dim, r_dim, ph, sun = body_view(scene, u.camera, 1)
         nav = reports.get(r.frame_id)
@@ -273,9 +274,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     try:
         campaign = build_campaign(args.scenario, seed=args.seed, fidelity="image", dispersions=args.dispersions)
     except ScenarioError as err:
-        print(f"{err.source}: invalid campaign", file=sys.stderr)
-        for line in err.problems:
-            print(f"  {line}", file=sys.stderr)
+        print(err.listing("campaign"), file=sys.stderr)
         return EXIT_CONFIG
     payload = campaign.to_json()
     folder = args.samples or args.out.with_name(args.out.name + ".samples")

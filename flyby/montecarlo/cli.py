@@ -116,9 +116,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
                                   centroid_model=args.centroid_model, dispersions=args.dispersions,
                                   in_view_required=args.in_view_required)
     except ScenarioError as err:
-        print(f"{err.source}: invalid campaign ({len(err.problems)} problem(s))", file=sys.stderr)
-        for line in err.problems:
-            print(f"  {line}", file=sys.stderr)
+        print(err.listing("campaign"), file=sys.stderr)
         return EXIT_CONFIG
     try:
         with open_store(args.out) as store:

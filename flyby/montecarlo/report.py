@@ -173,8 +173,8 @@ def summary_rows(t: CampaignTables, meta: dict[str, str], campaign: Campaign) ->
         rows += [("wall time per run (median)", f"{np.median(wall):.2f} s"),
                  ("real-time factor per run (median)", f"{np.median(rtf):.1f} x (simulated s per wall s)")]
     if wall.size:
-        rows.append(("runs per second per core", f"{1 / np.mean(wall):.3f} (one over the mean wall time of a run on its "
-                     "worker)"))
+        rows.append(("runs per second per core",
+                     f"{1 / np.mean(wall):.3f} (one over the mean wall time of a run on its worker)"))
     return rows
 
 

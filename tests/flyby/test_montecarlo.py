@@ -139,7 +139,8 @@ def test_a_run_that_raises_is_stored_with_its_traceback(tiny: Path, tmp_path: Pa
     """A draw that makes an invalid scenario fails its run, stored with the traceback naming the field; the
     campaign goes on."""
     bad = tmp_path / "bad.yaml"
-    bad.write_text(tiny.read_text() + "  - path: universe.bodies.dimorphos_diameter_m\n    uniform: {low: -2.0, high: -1.0}\n")
+    bad.write_text(tiny.read_text()
+                   + "  - path: universe.bodies.dimorphos_diameter_m\n    uniform: {low: -2.0, high: -1.0}\n")
     with dask_client(workers=1, processes=False) as client, open_store(tmp_path / "c") as store:
         assert run_campaign(client, _campaign(bad), [0, 1], store, Progress(2, stream=io.StringIO())) == 2
         rows = store.rows()
@@ -179,3 +180,16 @@ def test_flyby_mc_campaign_report_resume_and_replay(tiny: Path, tmp_path: Path, 
     assert main(["mc", "--out", str(tmp_path / "none"), "--report"]) == EXIT_CONFIG
     assert not (tmp_path / "none").exists()  # a mistyped folder is reported, not created
     assert np.isfinite([r["in_view_fraction"] for r in ResultStore(out / STORE_NAME).rows()]).all()
+
+
+def test_flyby_mc_refuses_an_unknown_dispersion_path_before_running(tiny: Path, tmp_path: Path,
+                                                                     capsys: pytest.CaptureFixture) -> None:
+    """A dispersion of a field the scenario lacks exits 2 naming the path, with the problem count, and runs nothing."""
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("dispersions:\n  - path: universe.bodies.orbit_phase\n    normal: {sigma: 1.0}\n")
+    out = tmp_path / "mc"
+    code = main(["mc", str(tiny), "--runs", "1", "--out", str(out), "--threads", "--dispersions", str(bad)])
+    err = capsys.readouterr().err
+    assert code == EXIT_CONFIG
+    assert "invalid campaign (1 problem(s))" in err and "orbit_phase" in err
+    assert not (out / "results.sqlite").exists()

@@ -157,7 +157,8 @@ def _orbit_phase_deg(u: Any) -> float:
 REACH: list[tuple[str, dict[str, Any], Any]] = [
     # (path, distribution, (fsw, universe, ground, drawn value, scenario) -> (value inside the component, expected))
     ("universe.uncertainty.ca_time_offset_sigma", {"normal": {"sigma": 1.0, "mean": 0.0}},
-     lambda f, u, g, v, s: (g.belief.ca_utc_s, s.universe.flyby.ca_time_s + v * s.universe.uncertainty.ca_time_sigma_s)),
+     lambda f, u, g, v, s: (g.belief.ca_utc_s,
+                            s.universe.flyby.ca_time_s + v * s.universe.uncertainty.ca_time_sigma_s)),
     ("universe.uncertainty.ca_distance_offset_sigma", {"normal": {"sigma": 1.0, "mean": 0.0}},
      lambda f, u, g, v, s: (g.belief.ca_distance_km,
                             s.universe.flyby.ca_distance_km + v * s.universe.uncertainty.ca_distance_sigma_km)),
