@@ -47,13 +47,15 @@ def _cells(row: Sequence[Any]) -> str:
     return "".join(f"<td>{html.escape(str(c))}</td>" for c in row)
 
 
-def _table(head: Sequence[str], rows: Sequence[Sequence[Any]], table_id: str = "") -> str:
+def html_table(head: Sequence[str], rows: Sequence[Sequence[Any]], table_id: str = "") -> str:
+    """An HTML table of text cells (escaped) under a header row."""
     h = "".join(f"<th>{html.escape(str(c))}</th>" for c in head)
     attr = f' id="{table_id}"' if table_id else ""
     return f"<table{attr}><tr>{h}</tr>" + "".join(f"<tr>{_cells(r)}</tr>" for r in rows) + "</table>"
 
 
-def _list(items: Sequence[str], cls: str = "") -> str:
+def html_list(items: Sequence[str], cls: str = "") -> str:
+    """An HTML bullet list of text items (escaped); empty without items."""
     if not items:
         return ""
     attr = f' class="{cls}"' if cls else ""
@@ -74,30 +76,35 @@ def estimates_table(figs: RunFigures) -> str:
     """The on-board C/A estimates at C/A - estimate_before_ca_s minus the true C/A to Dimorphos and to the
     Didymos barycentre ("-" where the telemetry has none)."""
     rows = [(r.estimate, r.reference, r.time_text(), r.distance_text()) for r in figs.estimate_rows()]
-    return _table(("on-board estimate", "minus the true C/A to", "C/A time error, s", "C/A distance error, km"), rows,
-                  "ca-estimates")
+    return html_table(("on-board estimate", "minus the true C/A to", "C/A time error, s", "C/A distance error, km"),
+                      rows, "ca-estimates")
 
 
 def report_html(title: str, figs: RunFigures, notes: list[str], missing: list[str], sections: list[Section]) -> str:
     """The self-contained HTML page: requirements and C/A estimates on top, then each section with its image."""
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
-             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>", "<h2>Requirements</h2>",
-             requirements_table(figs),
-             f"<h2>C/A estimates at C/A-{figs.estimate_before_ca_s:g} s</h2>",
-             "<p class='caption'>The on-board estimates of the closest approach standing then, minus the true "
-             "closest approach to Dimorphos (the body the camera measures: the scored figures) and, for comparison, "
-             "to the Didymos barycentre (the point ground's nominal trajectory describes).</p>",
-             estimates_table(figs), _list(notes)]
+    top = ["<h2>Requirements</h2>", requirements_table(figs),
+           f"<h2>C/A estimates at C/A-{figs.estimate_before_ca_s:g} s</h2>",
+           "<p class='caption'>The on-board estimates of the closest approach standing then, minus the true "
+           "closest approach to Dimorphos (the body the camera measures: the scored figures) and, for comparison, "
+           "to the Didymos barycentre (the point ground's nominal trajectory describes).</p>",
+           estimates_table(figs), html_list(notes)]
     if missing:
-        parts += ["<p class='missing'>This run is incomplete:</p>", _list(missing, "missing")]
+        top += ["<p class='missing'>This run is incomplete:</p>", html_list(missing, "missing")]
+    return page_html(title, top, sections)
+
+
+def page_html(title: str, top: list[str], sections: list[Section]) -> str:
+    """A self-contained HTML page: the title, the ``top`` HTML parts, then each section with its image inlined."""
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>", *top]
     for s in sections:
         parts.append(f"<h2>{html.escape(s.title)}</h2><p class='caption'>{html.escape(s.caption)}</p>")
-        parts.append(_list(s.missing, "missing"))
+        parts.append(html_list(s.missing, "missing"))
         if s.png is not None:
             uri = base64.b64encode(s.png).decode("ascii")
             parts.append(f"<img alt='{html.escape(s.title)}' src='data:image/png;base64,{uri}'>")
         parts.append(s.html_body)
-        parts.append(_list(s.notes))
+        parts.append(html_list(s.notes))
     parts.append("</body></html>")
     return "\n".join(p for p in parts if p)
 
@@ -124,7 +131,7 @@ def counts_section(data: RunData, figs: RunFigures) -> Section:
     if truth is not None:
         rows += [("control periods of truth", len(truth)), ("camera frames exposed", int((truth.frame_id >= 0).sum()))]
     rows += [("frame PNGs saved", len(data.frames)), ("detections compared with truth", figs.centroid_count)]
-    s.html_body = _table(("what", "count"), rows)
+    s.html_body = html_table(("what", "count"), rows)
     if data.summary_lines is None:
         s.missing.append("no summary.json: no time-correlation line")
     else:
@@ -148,5 +155,5 @@ def events_section(data: RunData, ca_obt: float, limit: int = 60) -> Section:
         rows.append((f"{t - ca_obt:+.1f}", type(ev).__name__, ev.severity.name, detail))
     if len(tm.events) > limit:
         s.notes.append(f"{len(tm.events) - limit} later event(s) not listed")
-    s.html_body = _table(("t - C/A, s", "event", "severity", "detail"), rows)
+    s.html_body = html_table(("t - C/A, s", "event", "severity", "detail"), rows)
     return s

@@ -15,6 +15,11 @@ class ScenarioError(FlybyError):
         self.problems = problems
         super().__init__(f"{source}: " + "; ".join(problems))
 
+    def listing(self, what: str) -> str:
+        """The error as a command prints it: ``SOURCE: invalid WHAT (N problem(s))``, then one problem a line."""
+        return "\n".join([f"{self.source}: invalid {what} ({len(self.problems)} problem(s))",
+                          *(f"  {p}" for p in self.problems)])
+
 
 class DecodeError(FlybyError):
     """A message on the bus could not be decoded (a peer's fault, never fatal to the receiver)."""

@@ -187,9 +187,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep.set_defaults(func=cmd_report)
     add_tm_arguments(sub.add_parser("tm", help="list, print or export (CSV) archived telemetry parameters of a run"))
     from flyby.console import add_parser as add_ground_console
+    from flyby.montecarlo.cli import add_parser as add_mc
     from flyby.replay import add_parser as add_replay
 
     add_ground_console(sub)
+    add_mc(sub)
     add_replay(sub)
     return p
 

@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
-from analysis.page import _CSS, _table
+from analysis.page import _CSS, html_table
 from analysis.stepdiff import StepDiff
 from contracts import sdls
 from contracts.errors import ScenarioError
@@ -265,7 +265,7 @@ def html_report(r: Replay) -> str:
             "<ul>" + "".join(f"<li>{html.escape(x)}</li>" for x in summary_lines(r)) + "</ul>"]
     rows = table_rows(r)
     if rows:
-        body += ["<h2>Differences by packet type and parameter</h2>", _table(TABLE_HEAD, rows, "differences")]
+        body += ["<h2>Differences by packet type and parameter</h2>", html_table(TABLE_HEAD, rows, "differences")]
     png = _torque_png(r)
     if png is not None:
         body += ["<h2>Commanded wheel torques</h2>",

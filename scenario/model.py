@@ -21,6 +21,7 @@ from contracts.seeding import rng_streams
 from contracts.textfile import TextFileError, load_yaml, read_text
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
+from scenario.dispersions import Dispersion, dispersion_problems
 from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
 from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
@@ -44,6 +45,9 @@ class Scenario(Config):
     obsw: ObswConfig = ObswConfig()
     ground: GroundConfig = GroundConfig()
     bus: BusConfig = BusConfig()
+    dispersions: tuple[Dispersion, ...] = Field(
+        (), description="fields drawn anew for each run of a Monte Carlo campaign (flyby mc; see scenario.dispersions); "
+        "a single run (flyby run) uses the nominal values")
     knowledge_errors: tuple[str, ...] = Field(
         (),
         description="knowing fields (obsw.*, ground.link.*) allowed to differ from the truth they know, as dotted "
@@ -106,6 +110,8 @@ class Scenario(Config):
         problems = knowledge_problems(self, set(self.knowledge_errors))
         problems += self._grid_fits_the_belief()
         problems += self._obt_encodable()
+        if self.dispersions:
+            problems += dispersion_problems(self.model_dump(mode="json"), self.dispersions)
         u, upload = self.universe, self.ground.upload_nominal_at_s
         if upload is not None and not u.start_s - 1e-9 <= upload < u.end_s:
             problems.append(f"ground.upload_nominal_at_s: {upload:g} s is outside the run {u.start_s:g}..{u.end_s:g} s: "

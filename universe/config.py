@@ -531,31 +531,51 @@ class CentroidModelConfig(Config):
 
     Per body whose centre projects into the frame: the true pinhole projection of its centre, shifted towards the
     Sun's side of the image by a fraction of its apparent radius that depends on the phase angle, plus Gaussian
-    noise. Dimorphos is not reported when the gap between its disc and Didymos's is below ``merge_gap_px`` (the
-    chain cannot tell them apart), nor in a dropout; a misidentified Dimorphos is reported where the chain puts
-    Didymos. Positions in full-resolution camera px. Defaults: fitted by ``flyby mc-fit`` on image-level runs of
-    the nominal scenario (README, "Centroid-level fidelity").
+    noise. Dimorphos is not reported when the chain cannot tell it from Didymos (a probability that depends on the
+    gap between their discs), nor in a dropout (a probability that depends on the phase angle); in a
+    misidentification episode (a few frames running) it is reported where the chain puts Didymos. Positions in
+    full-resolution camera px.
+
+    Defaults: fitted by ``flyby mc-fit configs/scenarios/nominal.yaml --runs 30 --seed 1000 --dispersions
+    configs/dispersions/flyby.yaml`` (13,367 frames of 30 image-level runs; README, "Centroid-level fidelity").
     """
 
     phase_deg: tuple[float, ...] = Field(
-        (0.0,), min_length=1,
+        (5.132, 15.334, 25.715, 36.115, 42.178, 55.017, 65.144, 75.195, 85.177, 95.258, 105.497, 115.825, 125.936,
+         130.629),
+        min_length=1,
         description="phase angles of the bias and dropout tables, deg, increasing (linear between, constant beyond)")
     bias_radius_fraction: tuple[float, ...] = Field(
-        (0.0,), min_length=1,
+        (0.0125, 0.074, 0.1378, 0.2242, -0.0105, 0.291, 0.5289, 0.6159, 0.6429, 0.6821, 0.6998, 0.7161, 0.7736, 0.7736),
+        min_length=1,
         description="centroid shift towards the Sun's side of the image at each phase_deg, fraction of the apparent "
         "radius")
     dimorphos_dropout: tuple[float, ...] = Field(
-        (0.0,), min_length=1,
+        (0.0172, 0.038, 0.0182, 0.0172, 0.0172, 0.5437, 0.0866, 0.0326, 0.0272, 0.0222, 0.0172, 0.0213, 0.7624, 1.0),
+        min_length=1,
         description="probability that a visible Dimorphos apart from Didymos is not reported, at each phase_deg")
-    noise_px: float = Field(0.0, ge=0, description="one-sigma centroid noise per axis, full-resolution px")
+    noise_px: float = Field(0.6028, ge=0, description="one-sigma centroid noise per axis, full-resolution px")
     noise_radius_fraction: float = Field(
-        0.0, ge=0, description="one-sigma centroid noise per axis growing with the body, fraction of its apparent radius")
-    merge_gap_px: float = Field(
-        0.0, description="Dimorphos is not reported when the gap between its disc and Didymos's is below this, "
-        "full-resolution px")
-    didymos_dropout: float = Field(0.0, ge=0, le=1, description="probability that a visible Didymos is not reported")
+        0.0628, ge=0,
+        description="one-sigma centroid noise per axis growing with the body, fraction of its apparent radius")
+    merge_gap_px: tuple[float, ...] = Field(
+        (-103.14, -30.28, -18.03, -14.39, -10.98, -6.39, -2.03, 2.27, 6.29, 10.09, 13.81, 17.85, 22.22, 25.93, 29.96,
+         34.1, 37.94, 41.95, 45.96, 49.98, 53.97, 58.0, 61.99, 65.98, 69.99, 73.95, 95.93),
+        min_length=1,
+        description="gaps between Dimorphos's disc and Didymos's of the merge table, full-resolution px, increasing")
+    merge_probability: tuple[float, ...] = Field(
+        (0.9886, 0.9086, 0.8684, 0.5521, 0.6816, 0.5221, 0.8262, 0.5777, 0.5014, 0.4235, 0.1225, 0.0, 0.0264, 0.1563,
+         0.1344, 0.1625, 0.1618, 0.1151, 0.0154, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        min_length=1,
+        description="probability that Dimorphos is not told from Didymos at each merge_gap_px (linear between, "
+        "constant beyond)")
+    didymos_dropout: float = Field(0.1124, ge=0, le=1, description="probability that a visible Didymos is not reported")
     misidentification: float = Field(
-        0.0, ge=0, le=1, description="probability that a reported Dimorphos is placed where Didymos is reported")
+        0.001311, ge=0, le=1,
+        description="probability that a misidentification episode starts at a frame reporting Dimorphos: it is "
+        "reported where Didymos is reported")
+    misidentification_frames: float = Field(
+        13.667, ge=1, description="mean length of a misidentification episode, frames reporting Dimorphos (geometric)")
 
     @model_validator(mode="after")
     def _tables(self) -> CentroidModelConfig:
@@ -563,10 +583,16 @@ class CentroidModelConfig(Config):
         for name in ("bias_radius_fraction", "dimorphos_dropout"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"{name}: {len(getattr(self, name))} values for {n} phase_deg")
-        if any(b <= a for a, b in zip(self.phase_deg, self.phase_deg[1:])):
-            raise ValueError("phase_deg: must increase")
-        if any(not 0 <= p <= 1 for p in self.dimorphos_dropout):
-            raise ValueError("dimorphos_dropout: probabilities must be within 0..1")
+        if len(self.merge_probability) != len(self.merge_gap_px):
+            raise ValueError(f"merge_probability: {len(self.merge_probability)} values for {len(self.merge_gap_px)} "
+                             "merge_gap_px")
+        for name in ("phase_deg", "merge_gap_px"):
+            v = getattr(self, name)
+            if any(b <= a for a, b in zip(v, v[1:])):
+                raise ValueError(f"{name}: must increase")
+        for name in ("dimorphos_dropout", "merge_probability"):
+            if any(not 0 <= p <= 1 for p in getattr(self, name)):
+                raise ValueError(f"{name}: probabilities must be within 0..1")
         return self
 
 

@@ -10,6 +10,7 @@ fitted on image-level runs by ``flyby mc-fit``.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,7 +23,7 @@ from universe.scene import scene_at
 if TYPE_CHECKING:
     from universe.simulator import Universe
 
-DRAWS_PER_FRAME = 4  # uniforms (Didymos dropout, Dimorphos dropout, misidentification, spare) and as many normals
+DRAWS_PER_FRAME = 4  # uniforms (Didymos dropout, Dimorphos seen, misidentification, episode length), 4 normals
 
 
 def bias_fraction(model: CentroidModelConfig, phase_deg: float) -> float:
@@ -33,6 +34,11 @@ def bias_fraction(model: CentroidModelConfig, phase_deg: float) -> float:
 def dimorphos_dropout(model: CentroidModelConfig, phase_deg: float) -> float:
     """The probability that a visible Dimorphos apart from Didymos is not reported, at a phase angle."""
     return float(np.interp(phase_deg, model.phase_deg, model.dimorphos_dropout))
+
+
+def merge_probability(model: CentroidModelConfig, gap_px: float) -> float:
+    """The probability that Dimorphos is not told from Didymos with this gap between their discs (full-res px)."""
+    return float(np.interp(gap_px, model.merge_gap_px, model.merge_probability))
 
 
 def body_view(scene: Scene, camera: CameraConfig, index: int) -> tuple[np.ndarray, float, float, np.ndarray]:
@@ -51,12 +57,28 @@ def body_view(scene: Scene, camera: CameraConfig, index: int) -> tuple[np.ndarra
     return col_row, focal_length_px(camera) * body.radius_m / range_m, phase_deg, towards_sun
 
 
+@dataclass
+class MeasurementState:
+    """What the model carries from frame to frame: the frames left in a misidentification episode."""
+
+    misidentified_left: int = 0
+
+
+def episode_frames(mean_frames: float, u: float) -> int:
+    """A geometric episode length (1, 2, ... frames) of the given mean, from a uniform draw in [0, 1)."""
+    if mean_frames <= 1.0:
+        return 1
+    return max(1, math.ceil(math.log1p(-u) / math.log1p(-1.0 / mean_frames)))
+
+
 def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidModelConfig,
-                         rng: np.random.Generator) -> CentroidMeasurement:
-    """The imaging chain's report of the frame of ``scene`` (bodies: Didymos, then Dimorphos).
+                         rng: np.random.Generator, state: MeasurementState | None = None) -> CentroidMeasurement:
+    """The imaging chain's report of the frame of ``scene`` (bodies: Didymos, then Dimorphos); ``state`` carries a
+    misidentification episode into the next frames (None: a frame on its own).
 
     Every frame takes the same number of draws, whatever it shows, so one frame's outcome never shifts the next's.
     """
+    state = state if state is not None else MeasurementState()
     u = rng.random(DRAWS_PER_FRAME)
     z = rng.standard_normal(DRAWS_PER_FRAME)
     if scene.blank or scene.saturated:  # nothing stands out of a blank or saturated frame
@@ -79,9 +101,13 @@ def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidMode
     if dimorphos is not None:
         (did_px, did_r, _, _), (dim_px, dim_r, dim_phase, _) = views
         gap = float(np.hypot(*(dim_px - did_px))) - did_r - dim_r if np.all(np.isfinite(did_px)) else math.inf
-        if gap < model.merge_gap_px or u[1] < dimorphos_dropout(model, dim_phase):
+        seen_p = (1.0 - merge_probability(model, gap)) * (1.0 - dimorphos_dropout(model, dim_phase))
+        if u[1] >= seen_p:
             dimorphos = None
-        elif didymos is not None and u[2] < model.misidentification:
+        elif didymos is not None and (state.misidentified_left > 0 or u[2] < model.misidentification):
+            if state.misidentified_left == 0:  # an episode starts
+                state.misidentified_left = episode_frames(model.misidentification_frames, u[3])
+            state.misidentified_left -= 1
             dimorphos = didymos
     return CentroidMeasurement(
         dimorphos_col_row=None if dimorphos is None else dimorphos[0],
@@ -94,7 +120,7 @@ def measure_at(u: Universe, exposure_s: float) -> tuple[CentroidMeasurement, tup
     """The measurement of the frame the camera takes now, with the true pinhole (col, row) of the centres of
     Dimorphos and Didymos (as ``render_at`` gives them with the pixels)."""
     scene = scene_at(u, exposure_s)
-    m = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, u.rng["camera"])
+    m = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, u.rng["camera"], u.measurement)
     dim = project_inertial(scene, u.cfg.camera, scene.bodies[1].centre_inertial_m)
     did = project_inertial(scene, u.cfg.camera, scene.bodies[0].centre_inertial_m)
     return m, dim, did

@@ -28,7 +28,7 @@ from universe.config import FaultConfig, UniverseConfig
 from universe.dynamics import AttitudeState, SpacecraftDynamics
 from universe.geometry import FlybyGeometry
 from universe.link import SpaceLink
-from universe.measurement import measure_at
+from universe.measurement import MeasurementState, measure_at
 from universe.oscillator import Oscillator, clock_jumps_s
 from universe.scene import body_shapes, render_at
 from universe.sensors import Sensors
@@ -127,6 +127,7 @@ class Universe:
         self._history = self._approach_history()
         self._obt_s = self.oscillator.obt_s(self.t_s)
         self.shapes = body_shapes(seed)
+        self.measurement = MeasurementState()  # centroid-level fidelity: a misidentification episode under way
         self._dark_frames: dict[float, np.ndarray] = {}
 
     def _approach_history(self) -> list[tuple[float, bytes]]:

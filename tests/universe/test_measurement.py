@@ -12,11 +12,12 @@ from scenario import compose
 from scenario.model import Scenario
 from universe.camera import Body, Scene
 from universe.config import CameraConfig, CentroidModelConfig, UniverseConfig
-from universe.measurement import body_view, centroid_measurement
+from universe.measurement import MeasurementState, body_view, centroid_measurement, episode_frames
 
 CAMERA = CameraConfig()
 PERFECT = dict(phase_deg=(0.0,), bias_radius_fraction=(0.0,), dimorphos_dropout=(0.0,), noise_px=0.0,
-               noise_radius_fraction=0.0, merge_gap_px=0.0, didymos_dropout=0.0, misidentification=0.0)
+               noise_radius_fraction=0.0, merge_gap_px=(0.0,), merge_probability=(0.0,), didymos_dropout=0.0,
+               misidentification=0.0, misidentification_frames=1.0)
 F_1024 = 512.0 / math.tan(math.radians(2.9) / 2.0)  # closed-form focal length of the default camera, px
 C_1024 = 511.5
 
@@ -109,9 +110,27 @@ def test_dropout_and_misidentification_rates() -> None:
     assert abs(swapped - p_swap) < 5 * math.sqrt(p_swap * (1 - p_swap) / n)
 
 
+def test_misidentifications_come_in_episodes_of_the_mean_length() -> None:
+    """Carried from frame to frame, episodes start at the configured rate among frames outside one and last the
+    configured mean number of frames (geometric: standard error sqrt(m (m - 1) / episodes))."""
+    sc = scene()
+    m_cfg = model(misidentification=0.02, misidentification_frames=5.0)
+    rng, state = np.random.default_rng(9), MeasurementState()
+    ms = [centroid_measurement(sc, CAMERA, m_cfg, rng, state) for _ in range(20000)]
+    flags = np.array([m.dimorphos_col_row == m.didymos_col_row for m in ms], dtype=bool)
+    p, mean = 0.02, 5.0
+    in_episodes = mean * p / (mean * p + 1 - p)  # renewal: episodes of mean length between geometric waits
+    assert abs(flags.mean() - in_episodes) < 0.02
+    assert np.sum(flags[1:] & ~flags[:-1]) > 150  # they come in runs, not frame by frame
+    mean_len = np.mean([episode_frames(5.0, u) for u in np.random.default_rng(10).random(20000)])
+    assert abs(mean_len - 5.0) < 5 * math.sqrt(5.0 * 4.0 / 20000)
+    assert episode_frames(1.0, 0.99) == 1 and episode_frames(5.0, 0.0) == 1
+
+
 def test_touching_discs_and_blank_frames_report_no_dimorphos() -> None:
-    """Dimorphos merged with Didymos (gap below merge_gap_px), out of the frame, or in a blank frame is not reported."""
-    m_cfg = model(merge_gap_px=2.0)
+    """Dimorphos merged with Didymos (gap below 2 px in the merge table), out of the frame, or in a blank frame is not
+    reported."""
+    m_cfg = model(merge_gap_px=(1.9, 2.1), merge_probability=(1.0, 0.0))
     rng = np.random.default_rng(5)
     # discs of 13.1 and 2.8 px at 600 km: 500 m apart is 16.9 px between centres, a gap of 1.0 px
     assert centroid_measurement(scene((500.0, 0.0)), CAMERA, m_cfg, rng).dimorphos_col_row is None
@@ -119,6 +138,17 @@ def test_touching_discs_and_blank_frames_report_no_dimorphos() -> None:
     assert centroid_measurement(scene((3000.0, 0.0), blank=True), CAMERA, m_cfg, rng).dimorphos_col_row is None
     outside = centroid_measurement(scene((600_000.0 * 0.03, 0.0)), CAMERA, m_cfg, rng)  # 1.7 deg off: out of 2.9
     assert outside.dimorphos_col_row is None and outside.didymos_col_row is not None
+
+
+def test_merging_follows_its_table_with_the_dropout() -> None:
+    """With a merge probability of 0.5 at the gap and a dropout of 0.2, Dimorphos is reported in 0.5 x 0.8 of the
+    frames (binomial 5-sigma band)."""
+    sc = scene((1000.0, 0.0))  # a gap of 17.8 px
+    m_cfg = model(merge_gap_px=(0.0, 35.6), merge_probability=(1.0, 0.0), dimorphos_dropout=(0.2,))
+    rng = np.random.default_rng(8)
+    n = 5000
+    seen = np.mean([centroid_measurement(sc, CAMERA, m_cfg, rng).dimorphos_col_row is not None for _ in range(n)])
+    assert abs(seen - 0.4) < 5 * math.sqrt(0.24 / n)
 
 
 def test_every_frame_takes_the_same_draws() -> None:
