@@ -18,6 +18,7 @@ from contracts.bus import BusConfig, Keys
 from contracts.clock import Clock, WallClock
 from contracts.messages import GroundReply, StepReply
 from contracts.runtime import Attachment
+from universe import attitude_rk4
 from universe.camera import frame_to_png8, warm_up
 from universe.simulator import Universe
 
@@ -105,7 +106,8 @@ def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, 
             wall = WallClock()
             t0 = wall.now()
             warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
-            log.info("camera kernels ready in %.1f s", wall.now() - t0)
+            attitude_rk4.warm_up()
+            log.info("camera and dynamics kernels ready in %.1f s", wall.now() - t0)
             cfg = made[0].cfg
             frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
             run(bus, made[0], bus_cfg, realtime, WallClock(), frames)
