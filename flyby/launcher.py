@@ -86,8 +86,8 @@ def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], r
     security = ["--credentials", str(credentials)] if credentials is not None else ["--insecure"]
     common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level, *security]
     return {
-        "universe": [python, "-m", "universe", *common, "--listen", ep["universe"], *(["--realtime"] if realtime else []),
-                     *(["--shared-memory"] if shared_memory else [])],
+        "universe": [python, "-m", "universe", *common, "--listen", ep["universe"],
+                     *(["--realtime"] if realtime else []), *(["--shared-memory"] if shared_memory else [])],
         "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"],
                  "--record-frames", record_frames],
         "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
