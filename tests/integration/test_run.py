@@ -69,10 +69,14 @@ def test_obsw_record_holds_the_downlink_and_replays(short_runs: tuple[Path, Path
 
 
 def test_raw_record_holds_the_pixels_the_digests_name(short_runs: tuple[Path, Path]) -> None:
-    """The second run recorded its frames raw: the same requests as the first, each frame's pixels hashing (BLAKE2b-64,
-    computed here) to the digest the first run recorded; it replays identically without rendering."""
+    """The second run recorded its frames raw: the same requests as the first (the telecommands' security envelope
+    aside: each run has fresh keys, so compared by the TC packets the authentication passed), each frame's pixels
+    hashing (BLAKE2b-64, computed here) to the digest the first run recorded; it replays identically without
+    rendering."""
     ref, raw = (list(StepLog(run / STEP_RECORD).steps()) for run in short_runs)
-    assert [s.request for s in ref] == [s.request for s in raw]
+    assert [s.request.model_copy(update={"uplink": ()}) for s in ref] == \
+        [s.request.model_copy(update={"uplink": ()}) for s in raw]
+    assert [s.verdicts for s in ref] == [s.verdicts for s in raw] and any(s.verdicts for s in ref)
     framed = [(a, b) for a, b in zip(ref, raw, strict=True) if a.request.frame is not None]
     assert framed and all(b.frame is not None and b.frame_digest is None for _, b in framed)
     assert all(hashlib.blake2b(b.frame.astype("<u2").tobytes(), digest_size=8).digest() == a.frame_digest
