@@ -155,7 +155,7 @@ def wheel_torques_nm(
     for _ in range(n):
         tau = np.zeros(n)
         if usable.any():
-            tau[usable] = -np.linalg.pinv(axes[:, usable]) @ torque
+            tau[usable] = -_split(axes, usable) @ torque
         # a saturated wheel may only be slowed down, never sped up further
         pushing = usable & (np.abs(momentum) >= max_momentum_nms) & (tau * momentum > 0)
         if not pushing.any():
@@ -165,3 +165,22 @@ def wheel_torques_nm(
     if peak > max_torque_nm:
         tau *= max_torque_nm / peak
     return tau
+
+
+_SPLITS: dict[tuple[bytes, bytes, tuple[int, ...]], NDArray[np.float64]] = {}
+_SPLITS_KEPT = 64  # wheel sets remembered: a spacecraft has a handful (all wheels, each one dropped)
+
+
+def _split(axes: NDArray[np.float64], usable: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The pseudo-inverse of the usable wheels' axes, computed once per axes and wheel set (the same matrix every
+    period: its SVD was most of the allocation's time); the array returned is the one computed, bit for bit."""
+    key = (axes.tobytes(), usable.tobytes(), axes.shape)
+    split = _SPLITS.get(key)
+    if split is None:
+        if len(_SPLITS) >= _SPLITS_KEPT:
+            _SPLITS.clear()
+        split = np.linalg.pinv(axes[:, usable])
+        split.setflags(write=False)
+        _SPLITS[key] = split
+    return split
+
