@@ -36,6 +36,7 @@ class Keys:
     def __init__(self, run_id: str) -> None:
         if not run_id or any(c in run_id for c in "/*$?#"):
             raise ValueError(f"run id {run_id!r} must be non-empty and free of '/', '*', '$', '?', '#'")
+        self.run_id = run_id
         self.root = f"flyby/{run_id}"
         self.step = f"{self.root}/obsw/step"
         self.reply = f"{self.root}/obsw/reply"

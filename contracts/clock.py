@@ -9,7 +9,11 @@ how fast the machine is.
 from __future__ import annotations
 
 import datetime
+import re
+import resource
+import sys
 import time
+from dataclasses import dataclass
 from typing import Protocol
 
 
@@ -69,3 +73,31 @@ def utc_now() -> datetime.datetime:
 def utc_stamp() -> str:
     """Local wall time as a compact UTC stamp for run-folder names (YYYYmmdd-HHMMSS)."""
     return time.strftime("%Y%m%d-%H%M%S", time.gmtime())
+
+
+@dataclass(frozen=True)
+class ProcessUsage:
+    """What this process has used so far: processor time (user and system, all threads) and peak resident memory."""
+
+    cpu_user_s: float
+    cpu_system_s: float
+    peak_rss_mb: float
+
+    def line(self) -> str:
+        """One log line, read back by ``parse``."""
+        return (f"resources: cpu {self.cpu_user_s:.2f} s user, {self.cpu_system_s:.2f} s system, "
+                f"peak RSS {self.peak_rss_mb:.1f} MB")
+
+    @staticmethod
+    def parse(text: str) -> ProcessUsage | None:
+        """The last usage line in ``text`` (a node's log), or None."""
+        found = re.findall(r"resources: cpu ([\d.]+) s user, ([\d.]+) s system, peak RSS ([\d.]+) MB", text)
+        return None if not found else ProcessUsage(*(float(x) for x in found[-1]))
+
+
+def process_usage() -> ProcessUsage:
+    """This process's processor time and peak resident set size (the kernel's high-water mark)."""
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    # Linux reports ru_maxrss in KiB, macOS in bytes
+    kib = ru.ru_maxrss / 1024.0 if sys.platform == "darwin" else float(ru.ru_maxrss)
+    return ProcessUsage(ru.ru_utime, ru.ru_stime, kib / 1024.0)

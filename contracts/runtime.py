@@ -23,6 +23,7 @@ from contracts.clock import Clock
 from contracts.errors import DecodeError, NodeFailure
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_OK, EXIT_PEER
 from contracts.messages import Message, Shutdown, Status, decode, encode
+from contracts.shared_blobs import MIN_SHARED_OCTETS, BlobSharer, SharedBlobError, is_reference, open_blob
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,7 @@ class Received:
 
     key: str
     msg: Message
-    blob: bytes
+    blob: bytes | memoryview  # a memoryview: mapped from shared memory (``contracts.shared_blobs``)
 
 
 DEPARTURE_GRACE_S = 1.0  # longest wait for the Shutdown of a run that ended normally, after a peer left
@@ -59,7 +60,10 @@ class RelayedFailure(NodeFailure):
 class Attachment:
     """A node on the bus: publish, subscribe, watch peers, wait for messages with a timeout."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, node: str, clock: Clock, log: logging.Logger) -> None:
+    def __init__(self, session: zenoh.Session, keys: Keys, node: str, clock: Clock, log: logging.Logger,
+                 share_blobs: bool = False) -> None:
+        """``share_blobs``: hand large blobs to peers through shared memory (``contracts.shared_blobs``; the peers
+        must be on this host); blobs shared by peers are taken either way."""
         self.session = session
         self.keys = keys
         self.node = node
@@ -72,6 +76,7 @@ class Attachment:
         self._keep: list[Any] = []
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._token: Any = None
+        self._sharer = BlobSharer(keys.run_id) if share_blobs else None
         self._watch(keys.shutdown, Shutdown)
 
     # -- receiving -----------------------------------------------------------------------------------------
@@ -82,9 +87,14 @@ class Attachment:
     def _watch(self, key: str, kind: type[Message]) -> None:
         def on_sample(sample: zenoh.Sample) -> None:
             data = sample.payload.to_bytes()
+            attachment = sample.attachment
             try:
                 msg, blob = decode(kind, data)
-            except DecodeError as exc:
+                if attachment is not None and is_reference(reference := attachment.to_bytes()):
+                    if blob:
+                        raise DecodeError(f"{kind.__name__}: a blob in the message and one in shared memory")
+                    blob = open_blob(self.keys.run_id, reference)
+            except (DecodeError, SharedBlobError) as exc:
                 self.decode_errors += 1
                 self.log.warning("undecodable message on %s (%d so far): %s", key, self.decode_errors, exc)
                 return
@@ -109,15 +119,19 @@ class Attachment:
         self._token = self.session.liveliness().declare_token(self.keys.alive(self.node))
 
     # -- sending -------------------------------------------------------------------------------------------
-    def publish(self, key: str, msg: Message, blob: bytes = b"") -> None:
-        """Publish a message reliably, blocking rather than dropping when the link is congested."""
+    def publish(self, key: str, msg: Message, blob: bytes = b"", shared: bytes | None = None) -> None:
+        """Publish a message reliably, blocking rather than dropping when the link is congested; ``shared``: the
+        reference of its blob in shared memory (the blob then stays out of the message)."""
         pub = self._publishers.get(key)
         if pub is None:
             pub = self.session.declare_publisher(
                 key, express=True, congestion_control=zenoh.CongestionControl.BLOCK
             )
             self._publishers[key] = pub
-        pub.put(encode(msg, blob))
+        if shared is None:
+            pub.put(encode(msg, blob))
+        else:
+            pub.put(encode(msg), attachment=shared)
 
     def status(self, sim_time_s: float, real_time_factor: float | None = None, mode: str | None = None,
                text: str = "") -> None:
@@ -152,20 +166,26 @@ class Attachment:
         """Publish ``msg`` and wait for the ``reply_kind`` answer to the same ``step``, resending until it comes.
 
         A reply to another step (a late duplicate) is dropped; no answer within ``timeout_s`` is the peer's failure.
+        A large blob goes through shared memory when this node shares blobs, and is removed once answered.
         """
         step = getattr(msg, "step")
         deadline = self.clock.now() + timeout_s
-        self.publish(key, msg, blob)
-        while True:
-            left = deadline - self.clock.now()
-            if left <= 0:
-                raise NodeFailure(peer, self.sim_time_s,
-                                  f"stopped answering (no reply to step {step} within {timeout_s:g} s)")
-            got = self._take(min(resend_s, left))
-            if got is None:
-                self.publish(key, msg, blob)
-            elif isinstance(got.msg, reply_kind) and getattr(got.msg, "step") == step:
-                return got
+        shared = self._sharer.share(blob) if self._sharer is not None and len(blob) >= MIN_SHARED_OCTETS else None
+        try:
+            self.publish(key, msg, blob, shared)
+            while True:
+                left = deadline - self.clock.now()
+                if left <= 0:
+                    raise NodeFailure(peer, self.sim_time_s,
+                                      f"stopped answering (no reply to step {step} within {timeout_s:g} s)")
+                got = self._take(min(resend_s, left))
+                if got is None:
+                    self.publish(key, msg, blob, shared)
+                elif isinstance(got.msg, reply_kind) and getattr(got.msg, "step") == step:
+                    return got
+        finally:
+            if shared is not None:
+                self._sharer.release(shared)  # type: ignore[union-attr]
 
     def wait_until_gone(self, nodes: Iterable[str], timeout_s: float) -> None:
         """Wait (at most ``timeout_s``) until ``nodes`` have withdrawn their tokens, ignoring other traffic."""
@@ -259,7 +279,11 @@ class Attachment:
         return EXIT_OK, True
 
     def close(self) -> None:
-        """Withdraw the liveliness token first, so peers see a clean departure before the session closes."""
+        """Withdraw the liveliness token first, so peers see a clean departure before the session closes; remove the
+        blobs still in shared memory."""
         if self._token is not None:
             self._token.undeclare()
             self._token = None
+        if self._sharer is not None:
+            self._sharer.close()
+            self._sharer = None

@@ -34,6 +34,8 @@ from contracts.errors import DecodeError
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_PEER
 from contracts.messages import Shutdown, Status, decode
 from contracts.runtime import Attachment
+from contracts.shared_blobs import run_folder as shared_run_folder
+from contracts.shared_blobs import shared_memory_available
 from contracts.steplog import FrameKeeping
 from scenario.model import Scenario
 
@@ -76,15 +78,16 @@ def endpoints(ports: dict[str, int], secured: bool) -> dict[str, str]:
 
 def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], realtime: bool,
                   log_level: str, credentials: Path | None, python: str = sys.executable,
-                  record_frames: FrameKeeping = "reference") -> dict[str, list[str]]:
+                  record_frames: FrameKeeping = "reference", shared_memory: bool = False) -> dict[str, list[str]]:
     """The command line of each node: universe listens, obsw connects to it, ground connects to both; over TLS with
     the identities in ``credentials``, or plain TCP when None; the OBSW's step record keeps camera frames as
-    ``record_frames`` says."""
+    ``record_frames`` says; ``shared_memory``: frames go from the universe to the OBSW through shared memory."""
     ep = endpoints(ports, credentials is not None)
     security = ["--credentials", str(credentials)] if credentials is not None else ["--insecure"]
     common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level, *security]
     return {
-        "universe": [python, "-m", "universe", *common, "--listen", ep["universe"], *(["--realtime"] if realtime else [])],
+        "universe": [python, "-m", "universe", *common, "--listen", ep["universe"],
+                     *(["--realtime"] if realtime else []), *(["--shared-memory"] if shared_memory else [])],
         "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"],
                  "--record-frames", record_frames],
         "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
@@ -124,7 +127,9 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
     run_id = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{folder.name}-{os.getpid()}")
     keys = Keys(run_id)
     ports = {n: free_tcp_port() for n in NODES}
-    cmds = node_commands(config, run_id, folder, ports, realtime, log_level, credentials, record_frames=record_frames)
+    # the three nodes share this host: frames travel through its shared memory when it has some
+    cmds = node_commands(config, run_id, folder, ports, realtime, log_level, credentials, record_frames=record_frames,
+                         shared_memory=shared_memory_available())
     for node in ("obsw", "ground"):
         cmds[node] += ["--tc-keys", str(key_folder / TC_KEY_FILE)]
     ep = endpoints(ports, credentials is not None)
@@ -203,6 +208,7 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
             for f in logs.values():
                 f.close()
             del subs
+            shutil.rmtree(shared_run_folder(run_id), ignore_errors=True)  # frames a node that died left behind
     if tty:
         print(file=stream)
     return _summarise(folder, procs, watch, interrupted, stream)

@@ -16,8 +16,10 @@ from pathlib import Path
 
 from contracts import sdls
 from contracts.bus import EndpointError, Keys, TlsIdentity, access_control, session_config
+from contracts.clock import process_usage
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
+from contracts.shared_blobs import SHM_ROOT, shared_memory_available
 from contracts.steplog import FRAME_KEEPING, STEP_RECORD
 from flyby.credentials import TC_KEY_FILE
 from scenario import compose
@@ -56,7 +58,7 @@ def _start(node: str, conf, scenario: Scenario, args: argparse.Namespace) -> int
         from universe.node import main as universe_main
 
         return universe_main(conf, lambda: compose.universe(scenario), scenario.bus, args.run_id, args.out,
-                             args.realtime)
+                             args.realtime, args.shared_memory)
     from ground.node import main as ground_main
 
     # the report reads the scenario from the run folder; keep a copy there when started alone
@@ -99,6 +101,9 @@ def node_main(node: str, argv: Sequence[str] | None = None) -> int:
     p.add_argument("--run-id", default="default", help="run identifier shared by the three nodes")
     p.add_argument("--out", type=Path, default=Path("."), help="folder for this node's outputs")
     p.add_argument("--realtime", action="store_true", help="pace the universe to the wall clock")
+    p.add_argument("--shared-memory", action="store_true",
+                   help="universe: hand camera frames to the OBSW through this host's shared memory (" +
+                   str(SHM_ROOT) + ") instead of in the messages; the OBSW must run on the same host")
     p.add_argument("--record-frames", choices=FRAME_KEEPING, default=FRAME_KEEPING[0],
                    help="how the OBSW node's step record keeps camera frames: by reference (a digest; the replay "
                    "renders them again) or raw (the pixels, about 0.55 MB a frame)")
@@ -131,5 +136,11 @@ def node_main(node: str, argv: Sequence[str] | None = None) -> int:
     except (ValueError, EndpointError, sdls.KeyFileError) as err:
         print(f"python -m {node}: {err}", file=sys.stderr)
         return EXIT_CONFIG
+    if args.shared_memory and not shared_memory_available():
+        print(f"python -m {node}: --shared-memory: this host has no writable {SHM_ROOT}", file=sys.stderr)
+        return EXIT_CONFIG
     args.out.mkdir(parents=True, exist_ok=True)
-    return _start(node, conf, scenario, args)
+    try:
+        return _start(node, conf, scenario, args)
+    finally:
+        logging.getLogger(node).info("%s", process_usage().line())

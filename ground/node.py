@@ -151,6 +151,10 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
             continue
         bus.sim_time_s = msg.utc_s
         uplink, received, lines = segment.step(msg.utc_s, msg.downlink, msg.downlink_utc_s)
+        # answer first: the universe goes on with its periods while this step's telemetry and truth are filed
+        reply = GroundReply(step=msg.step, uplink=tuple(uplink))
+        bus.publish(bus.keys.ground_reply, reply)
+        last = (msg.step, reply)
         for p in received:
             stored = archive.store(p.raw, p.receipt_utc_s)
             if p.alarm is not None:
@@ -166,9 +170,6 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         if tc_log is not None and uplink:
             tc_log.write(b"".join(segment.radiated))  # every telecommand radiated (no security envelope), for analysis
             tc_log.flush()
-        reply = GroundReply(step=msg.step, uplink=tuple(uplink))
-        bus.publish(bus.keys.ground_reply, reply)
-        last = (msg.step, reply)
         now = bus.clock.now()
         if now - last_status >= 0.5:
             hk = segment.state.last_hk

@@ -29,7 +29,7 @@ def _vector(name: str, value: ArrayLike, size: int) -> NDArray[np.float64]:
     arr = np.asarray(value, dtype=float)
     if arr.shape != (size,):
         raise ValueError(f"{name} must have shape ({size},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise ValueError(f"{name} must be finite, got {arr}")
     return arr
 
@@ -44,17 +44,16 @@ def _unit_quaternion(name: str, value: ArrayLike) -> NDArray[np.float64]:
 
 def _error_quaternion(q: NDArray[np.float64], q_des: NDArray[np.float64]) -> NDArray[np.float64]:
     """conj(q_des) (x) q, scalar-last, with a non-negative scalar part (the shortest way round)."""
-    dx, dy, dz, dw = -q_des[0], -q_des[1], -q_des[2], q_des[3]
-    bx, by, bz, bw = q
-    e = np.array(
-        [
-            dw * bx + dx * bw + dy * bz - dz * by,
-            dw * by - dx * bz + dy * bw + dz * bx,
-            dw * bz + dx * by - dy * bx + dz * bw,
-            dw * bw - dx * bx - dy * by - dz * bz,
-        ]
-    )
-    return -e if e[3] < 0 else e
+    dx, dy, dz, dw = q_des.tolist()  # plain floats: the same arithmetic as numpy scalars, without their overhead
+    dx, dy, dz = -dx, -dy, -dz
+    bx, by, bz, bw = q.tolist()
+    e = [
+        dw * bx + dx * bw + dy * bz - dz * by,
+        dw * by - dx * bz + dy * bw + dz * bx,
+        dw * bz + dx * by - dy * bx + dz * bw,
+        dw * bw - dx * bx - dy * by - dz * bz,
+    ]
+    return np.array([-c for c in e] if e[3] < 0 else e)
 
 
 def _rotvec(e: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -68,7 +67,7 @@ def _rotvec(e: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def _matrix(e: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rotation matrix of a unit quaternion (scalar-last)."""
-    x, y, z, w = e
+    x, y, z, w = e.tolist()
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -79,7 +78,8 @@ def _matrix(e: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    (ax, ay, az), (bx, by, bz) = a.tolist(), b.tolist()
+    return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
 
 
 def attitude_error_rad(q: ArrayLike, q_des: ArrayLike) -> NDArray[np.float64]:
@@ -155,7 +155,7 @@ def wheel_torques_nm(
     for _ in range(n):
         tau = np.zeros(n)
         if usable.any():
-            tau[usable] = -np.linalg.pinv(axes[:, usable]) @ torque
+            tau[usable] = -_split(axes, usable) @ torque
         # a saturated wheel may only be slowed down, never sped up further
         pushing = usable & (np.abs(momentum) >= max_momentum_nms) & (tau * momentum > 0)
         if not pushing.any():
@@ -165,3 +165,22 @@ def wheel_torques_nm(
     if peak > max_torque_nm:
         tau *= max_torque_nm / peak
     return tau
+
+
+_SPLITS: dict[tuple[bytes, bytes, tuple[int, ...]], NDArray[np.float64]] = {}
+_SPLITS_KEPT = 64  # wheel sets remembered: a spacecraft has a handful (all wheels, each one dropped)
+
+
+def _split(axes: NDArray[np.float64], usable: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The pseudo-inverse of the usable wheels' axes, computed once per axes and wheel set (the same matrix every
+    period: its SVD was most of the allocation's time); the array returned is the one computed, bit for bit."""
+    key = (axes.tobytes(), usable.tobytes(), axes.shape)
+    split = _SPLITS.get(key)
+    if split is None:
+        if len(_SPLITS) >= _SPLITS_KEPT:
+            _SPLITS.clear()
+        split = np.linalg.pinv(axes[:, usable])
+        split.setflags(write=False)
+        _SPLITS[key] = split
+    return split
+

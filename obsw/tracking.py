@@ -22,7 +22,9 @@ The commanded attitude is ``R_des = R(c) R_pred`` where ``R_pred`` puts the bore
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -61,8 +63,10 @@ def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
+@lru_cache(maxsize=64)
 def loop_transition(kp: float, ki: float, h_s: float) -> NDArray[np.float64]:
-    """exp(M h) for M = [[-kp, -1], [ki, 0]] in closed form (M = a I + N with N^2 = delta I)."""
+    """exp(M h) for M = [[-kp, -1], [ki, 0]] in closed form (M = a I + N with N^2 = delta I); read-only (cached:
+    the loop steps by the same control period almost every time)."""
     a = -0.5 * kp
     delta = 0.25 * kp * kp - ki
     nil = np.array([[-kp - a, -1.0], [ki, -a]])
@@ -77,16 +81,28 @@ def loop_transition(kp: float, ki: float, h_s: float) -> NDArray[np.float64]:
         even, odd = np.cosh(x), np.sinh(x) / root
     else:
         even, odd = np.cos(x), np.sin(x) / root
-    return np.exp(a * h_s) * (even * np.eye(2) + odd * nil)
+    out = np.exp(a * h_s) * (even * np.eye(2) + odd * nil)
+    out.setflags(write=False)
+    return out
+
+
+def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The cross-product matrix of a 3-vector: ``_skew(v) @ w = v x w``."""
+    x, y, z = v.tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
 
 
 def _left_jacobian(phi: NDArray[np.float64]) -> NDArray[np.float64]:
     """SO(3) left Jacobian: the angular velocity of ``R(phi(t))`` is ``J(phi) phi'``."""
-    angle = float(np.linalg.norm(phi))
-    k = np.array([[0.0, -phi[2], phi[1]], [phi[2], 0.0, -phi[0]], [-phi[1], phi[0], 0.0]])
+    angle = math.sqrt(phi.dot(phi))  # numpy.linalg.norm's own evaluation, without its overhead
+    k = _skew(phi)
     if angle < 1e-6:
-        return np.eye(3) + 0.5 * k + k @ k / 6.0
-    return np.eye(3) + (1 - np.cos(angle)) / angle**2 * k + (angle - np.sin(angle)) / angle**3 * (k @ k)
+        return _EYE3 + 0.5 * k + k @ k / 6.0
+    return _EYE3 + (1 - np.cos(angle)) / angle**2 * k + (angle - np.sin(angle)) / angle**3 * (k @ k)
 
 
 def _body_triad(cfg: TrackingConfig, boresight_body: tuple[float, float, float]) -> NDArray[np.float64]:
@@ -101,17 +117,62 @@ def _body_triad(cfg: TrackingConfig, boresight_body: tuple[float, float, float])
 
 def _rotation_matrix(rotvec: NDArray[np.float64]) -> NDArray[np.float64]:
     """Rodrigues: the rotation matrix of a rotation vector (rad)."""
-    angle = float(np.sqrt(rotvec @ rotvec))
-    k = np.array([[0.0, -rotvec[2], rotvec[1]], [rotvec[2], 0.0, -rotvec[0]], [-rotvec[1], rotvec[0], 0.0]])
+    angle = math.sqrt(rotvec @ rotvec)
+    k = _skew(rotvec)
     if angle < 1e-8:
-        return np.eye(3) + k + 0.5 * (k @ k)
-    return np.eye(3) + np.sin(angle) / angle * k + (1 - np.cos(angle)) / angle**2 * (k @ k)
+        return _EYE3 + k + 0.5 * (k @ k)
+    return _EYE3 + np.sin(angle) / angle * k + (1 - np.cos(angle)) / angle**2 * (k @ k)
 
 
-def _predicted_matrix(trajectory: NominalTrajectory, obt_s: float, body_triad: NDArray[np.float64]) -> NDArray:
-    los = trajectory.los_inertial(obt_s)
-    n = trajectory.plane_normal  # exactly orthogonal to the LOS of a straight-line flyby
-    return np.column_stack([los, n, _cross(los, n)]) @ body_triad.T
+def quaternion_of_matrix(m: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Scalar-last unit quaternion of a rotation matrix: ``Rotation.from_matrix(m).as_quat()`` to the last bit, at a
+    twentieth of its cost.
+
+    Markley's method (F. L. Markley, "Unit Quaternion from Rotation Matrix", Journal of Guidance, Control, and
+    Dynamics 31(2), 2008) in the operations and order of SciPy's implementation; a matrix SciPy would first
+    orthogonalise (its Gram matrix off the identity by 1e-12 or more) or refuse (not a rotation) goes to SciPy.
+    """
+    m00, m01, m02 = float(m[0, 0]), float(m[0, 1]), float(m[0, 2])
+    m10, m11, m12 = float(m[1, 0]), float(m[1, 1]), float(m[1, 2])
+    m20, m21, m22 = float(m[2, 0]), float(m[2, 1]), float(m[2, 2])
+    gram = (m00 * m00 + m01 * m01 + m02 * m02 - 1.0, m10 * m10 + m11 * m11 + m12 * m12 - 1.0,
+            m20 * m20 + m21 * m21 + m22 * m22 - 1.0, m00 * m10 + m01 * m11 + m02 * m12,
+            m00 * m20 + m01 * m21 + m02 * m22, m10 * m20 + m11 * m21 + m12 * m22)
+    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
+    # SciPy's test is 1e-12 on the Gram matrix: half of it leaves room for the rounding of either evaluation
+    if not (max(abs(g) for g in gram) < 0.5e-12 and det > 0.5):
+        return Rotation.from_matrix(m).as_quat()
+    trace = m00 + m11 + m22
+    decision = (m00, m11, m22, trace)
+    choice = 0
+    for i in (1, 2, 3):
+        if decision[i] > decision[choice]:
+            choice = i
+    rows = ((m00, m01, m02), (m10, m11, m12), (m20, m21, m22))
+    q = [0.0, 0.0, 0.0, 0.0]
+    if choice != 3:
+        i = choice
+        j, k = (i + 1) % 3, (i + 2) % 3
+        q[i] = 1 - trace + 2 * rows[i][i]
+        q[j] = rows[j][i] + rows[i][j]
+        q[k] = rows[k][i] + rows[i][k]
+        q[3] = rows[k][j] - rows[j][k]
+    else:
+        q[0] = m21 - m12
+        q[1] = m02 - m20
+        q[2] = m10 - m01
+        q[3] = 1 + trace
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    return np.array([q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm])
+
+
+def _predicted_matrix(trajectory: NominalTrajectory, obt_s: float, body_triad: NDArray[np.float64],
+                      los: NDArray[np.float64] | None = None) -> NDArray:
+    """``[los, n, los x n] triad^T`` (``los``: the trajectory's at ``obt_s``, if already at hand)."""
+    lx, ly, lz = (trajectory.los_inertial(obt_s) if los is None else los).tolist()
+    nx, ny, nz = trajectory.plane_normal.tolist()  # exactly orthogonal to the LOS of a straight-line flyby
+    columns = np.array([[lx, nx, ly * nz - lz * ny], [ly, ny, lz * nx - lx * nz], [lz, nz, lx * ny - ly * nx]])
+    return columns @ body_triad.T
 
 
 def predicted_attitude(trajectory: NominalTrajectory, obt_s: float, cfg: TrackingConfig,
@@ -269,7 +330,7 @@ class TrackingLoop:
         else:
             if not (np.isfinite(dt_s) and dt_s >= 0):
                 raise ValueError(f"dt_s must be finite and >= 0, got {dt_s}")
-            if self._trajectory is not None and trajectory != self._trajectory:
+            if self._trajectory is not None and trajectory is not self._trajectory and trajectory != self._trajectory:
                 self._rebase(self._trajectory, trajectory)
             self._propagate(dt_s)
         self._obt = float(obt_s)
@@ -285,7 +346,7 @@ class TrackingLoop:
             else:
                 self._rejected_run = 0
                 self._meas = [*self._meas[-1:], (t_taken, taken, los)]
-        if los is not None or switched or trajectory != self._trajectory:
+        if los is not None or switched or (trajectory is not self._trajectory and trajectory != self._trajectory):
             self._line = self._input_line(trajectory)
         self._trajectory = trajectory
         return self._reference(trajectory)
@@ -303,7 +364,8 @@ class TrackingLoop:
         assert self._obt is not None and self._t is not None
         obt = self._obt
         r_c = _rotation_matrix(self._c)
-        r_des = r_c @ _predicted_matrix(trajectory, obt, self._triad)
+        los = trajectory.los_inertial(obt)
+        r_des = r_c @ _predicted_matrix(trajectory, obt, self._triad, los)
         n_c = r_c @ trajectory.plane_normal
         rate = float(trajectory.los_rate_rad_s(obt))
         accel = float(trajectory.los_accel_rad_s2(obt))
@@ -319,8 +381,8 @@ class TrackingLoop:
         # d/dt omega_in, neglecting J' c' (second order in the small correction)
         alpha_in = jac @ c_ddot + rate * _cross(omega_c, n_c) + accel * n_c
         return Reference(
-            q_des=Rotation.from_matrix(r_des).as_quat(),
+            q_des=quaternion_of_matrix(r_des),
             omega_des_body=r_des.T @ omega_in,
             alpha_des_body=r_des.T @ alpha_in,
-            los_commanded_inertial=r_c @ trajectory.los_inertial(obt),
+            los_commanded_inertial=r_c @ los,
         )

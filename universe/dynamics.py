@@ -1,4 +1,5 @@
-"""Attitude dynamics of a rigid spacecraft with reaction wheels (a gyrostat), integrated with fixed-step RK4.
+"""Attitude dynamics of a rigid spacecraft with reaction wheels (a gyrostat), integrated with fixed-step RK4 (the
+substeps compiled in ``universe.attitude_rk4``).
 
 Model (body axes; A is the 3 x N matrix of wheel spin axes, J the rotor axial inertia, I the spacecraft inertia
 without the rotors' axial inertia):
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from universe.attitude_rk4 import integrate
 from universe.config import SpacecraftConfig
 
 
@@ -63,15 +65,15 @@ def pyramid_axes_body(elevation_deg: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _Mode:
-    """Matrices precomputed for one set of stuck wheels, as Python floats for the RK4 inner loop."""
+    """Matrices precomputed for one set of stuck wheels, as the compiled integrator takes them."""
 
     free: np.ndarray  # (N,) 1.0 for a free rotor, 0.0 for a stuck one
     i_eff: np.ndarray  # (3, 3) spacecraft inertia plus the stuck rotors' axial inertia
     i_eff_inv: np.ndarray
-    gain: tuple[float, ...]  # d(J Omega_i)/d(u_i) = 1 + J a_i^T I_eff^-1 a_i
-    i_eff_flat: tuple[float, ...]  # row-major 9 floats
-    i_eff_inv_flat: tuple[float, ...]
-    free_axes: tuple[tuple[int, float, float, float], ...]  # (index, ax, ay, az) of each free rotor
+    gain: np.ndarray  # (N,) d(J Omega_i)/d(u_i) = 1 + J a_i^T I_eff^-1 a_i
+    i_eff_flat: np.ndarray  # (9,) row-major
+    i_eff_inv_flat: np.ndarray
+    free_axes: np.ndarray  # (F, 4) index, ax, ay, az of each free rotor
 
 
 class SpacecraftDynamics:
@@ -118,12 +120,12 @@ class SpacecraftDynamics:
                 free=free,
                 i_eff=i_eff,
                 i_eff_inv=i_eff_inv,
-                gain=tuple(float(g) for g in gain),
-                i_eff_flat=tuple(float(c) for c in i_eff.ravel()),
-                i_eff_inv_flat=tuple(float(c) for c in i_eff_inv.ravel()),
-                free_axes=tuple(
-                    (i, float(a[0, i]), float(a[1, i]), float(a[2, i])) for i in range(self.n_wheels) if free[i]
-                ),
+                gain=np.array([float(g) for g in gain]),
+                i_eff_flat=np.array([float(c) for c in i_eff.ravel()]),
+                i_eff_inv_flat=np.array([float(c) for c in i_eff_inv.ravel()]),
+                free_axes=np.array(
+                    [(i, float(a[0, i]), float(a[1, i]), float(a[2, i])) for i in range(self.n_wheels) if free[i]]
+                ).reshape(-1, 4),
             )
             self._modes[stuck] = mode
         return mode
@@ -218,98 +220,9 @@ class SpacecraftDynamics:
         else:
             n_sub = max(math.ceil(dt_s / self._max_substep_s - 1e-9), math.ceil(dt_s * self._friction_rate_s / 0.5))
         hs = dt_s / n_sub if n_sub else 0.0
-        x = self._integrate([float(c) for c in (*q, *w, *h)], [float(c) for c in u_held], mode, n_sub, hs)
-        arr = np.array(x)
-        q, w, h = arr[:4], arr[4:7], arr[7:]
+        x = integrate(np.array([float(c) for c in (*q, *w, *h)]), np.array([float(c) for c in u_held]),
+                      mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw, self.max_momentum_nms,
+                      self._viscous, self._coulomb, 1.0 / self._smooth, n_sub, hs)
+        q, w, h = x[:4], x[4:7], x[7:]
         speeds = (h / jw - a.T @ w) * mode.free
         return AttitudeState(q=q, omega_rad_s=w, wheel_speed_rad_s=speeds)
-
-    def _integrate(self, x: list[float], u_held: list[float], mode: _Mode, n_sub: int, hs: float) -> list[float]:
-        """Return x = [q (4), w (3), h (N)] after n_sub RK4 substeps of hs with motor torques u_held.
-
-        Written with plain Python floats: with 3-4 wheels numpy's per-call overhead would dominate this loop.
-        """
-        jw = self.rotor_inertia_kgm2
-        inv_jw = 1.0 / jw
-        h_max = self.max_momentum_nms
-        cv, cc, inv_eps = self._viscous, self._coulomb, 1.0 / self._smooth
-        tanh = math.tanh
-        free_axes = mode.free_axes
-        gain = mode.gain
-        i00, i01, i02, i10, i11, i12, i20, i21, i22 = mode.i_eff_flat
-        j00, j01, j02, j10, j11, j12, j20, j21, j22 = mode.i_eff_inv_flat
-        n = len(x) - 7
-
-        def rates(wx: float, wy: float, wz: float, h: list[float], u: list[float]) -> tuple[float, float, float, list]:
-            """Return (dw/dt, dh/dt) for body rate w and rotor momenta h."""
-            taus = [0.0] * n
-            hx = hy = hz = tx = ty = tz = 0.0
-            for i, ax, ay, az in free_axes:
-                hi = h[i]
-                speed = hi * inv_jw - (ax * wx + ay * wy + az * wz)
-                t = u[i] - cv * speed - cc * tanh(speed * inv_eps)
-                taus[i] = t
-                hx += ax * hi
-                hy += ay * hi
-                hz += az * hi
-                tx += ax * t
-                ty += ay * t
-                tz += az * t
-            bx = i00 * wx + i01 * wy + i02 * wz + hx
-            by = i10 * wx + i11 * wy + i12 * wz + hy
-            bz = i20 * wx + i21 * wy + i22 * wz + hz
-            # Right-hand side -A tau - w x H.
-            rx = -tx - (wy * bz - wz * by)
-            ry = -ty - (wz * bx - wx * bz)
-            rz = -tz - (wx * by - wy * bx)
-            return (
-                j00 * rx + j01 * ry + j02 * rz,
-                j10 * rx + j11 * ry + j12 * rz,
-                j20 * rx + j21 * ry + j22 * rz,
-                taus,
-            )
-
-        def q_rate(qx: float, qy: float, qz: float, qw: float, wx: float, wy: float, wz: float) -> tuple:
-            """Return dq/dt = 1/2 q (x) [w, 0] for a body -> inertial quaternion and body rate w."""
-            return (
-                0.5 * (qw * wx - qz * wy + qy * wz),
-                0.5 * (qz * wx + qw * wy - qx * wz),
-                0.5 * (-qy * wx + qx * wy + qw * wz),
-                -0.5 * (qx * wx + qy * wy + qz * wz),
-            )
-
-        qx, qy, qz, qw, wx, wy, wz = x[:7]
-        h = x[7:]
-        half, sixth = 0.5 * hs, hs / 6.0
-        for _ in range(n_sub):
-            # Cut the motor torque back so no rotor's relative momentum grows past the limit in this substep.
-            u = list(u_held)
-            for i, ax, ay, az in free_axes:
-                ui = u[i]
-                if ui != 0.0:
-                    p = h[i] - jw * (ax * wx + ay * wy + az * wz)
-                    if ui * p >= 0.0:
-                        allowed = max(h_max - abs(p), 0.0) / (gain[i] * hs)
-                        u[i] = min(max(ui, -allowed), allowed)
-            a1x, a1y, a1z, t1 = rates(wx, wy, wz, h, u)
-            b1 = q_rate(qx, qy, qz, qw, wx, wy, wz)
-            w2x, w2y, w2z = wx + half * a1x, wy + half * a1y, wz + half * a1z
-            a2x, a2y, a2z, t2 = rates(w2x, w2y, w2z, [hi + half * ti for hi, ti in zip(h, t1)], u)
-            b2 = q_rate(qx + half * b1[0], qy + half * b1[1], qz + half * b1[2], qw + half * b1[3], w2x, w2y, w2z)
-            w3x, w3y, w3z = wx + half * a2x, wy + half * a2y, wz + half * a2z
-            a3x, a3y, a3z, t3 = rates(w3x, w3y, w3z, [hi + half * ti for hi, ti in zip(h, t2)], u)
-            b3 = q_rate(qx + half * b2[0], qy + half * b2[1], qz + half * b2[2], qw + half * b2[3], w3x, w3y, w3z)
-            w4x, w4y, w4z = wx + hs * a3x, wy + hs * a3y, wz + hs * a3z
-            a4x, a4y, a4z, t4 = rates(w4x, w4y, w4z, [hi + hs * ti for hi, ti in zip(h, t3)], u)
-            b4 = q_rate(qx + hs * b3[0], qy + hs * b3[1], qz + hs * b3[2], qw + hs * b3[3], w4x, w4y, w4z)
-            wx += sixth * (a1x + 2.0 * (a2x + a3x) + a4x)
-            wy += sixth * (a1y + 2.0 * (a2y + a3y) + a4y)
-            wz += sixth * (a1z + 2.0 * (a2z + a3z) + a4z)
-            h = [hi + sixth * (c1 + 2.0 * (c2 + c3) + c4) for hi, c1, c2, c3, c4 in zip(h, t1, t2, t3, t4)]
-            qx += sixth * (b1[0] + 2.0 * (b2[0] + b3[0]) + b4[0])
-            qy += sixth * (b1[1] + 2.0 * (b2[1] + b3[1]) + b4[1])
-            qz += sixth * (b1[2] + 2.0 * (b2[2] + b3[2]) + b4[2])
-            qw += sixth * (b1[3] + 2.0 * (b2[3] + b3[3]) + b4[3])
-            norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-            qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
-        return [qx, qy, qz, qw, wx, wy, wz, *h]

@@ -8,42 +8,76 @@ waits for the wall clock, for hardware in the loop.
 from __future__ import annotations
 
 import logging
+import queue
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
 import cv2
+import numpy as np
 import zenoh
 
 from contracts.bus import BusConfig, Keys
 from contracts.clock import Clock, WallClock
 from contracts.messages import GroundReply, StepReply
 from contracts.runtime import Attachment
+from contracts.shared_blobs import run_folder
+from universe import attitude_rk4
 from universe.camera import frame_to_png8, warm_up
 from universe.simulator import Universe
 
 log = logging.getLogger("universe")
+_FRAMES_QUEUED = 8  # frames waiting for their PNG at most (16 MB): the loop waits rather than hold more
 
 
 
 class FrameWriter:
-    """Writes the frames the camera took as 8-bit 512x512 PNGs, for the report and for people to look at."""
+    """Writes the frames the camera took as 8-bit 512x512 PNGs, for the report and for people to look at, in a
+    thread of its own: the stretch, resampling and compression stay off the control loop (OpenCV and numpy release
+    the interpreter while they work). A write that fails (a full disk) stops the PNGs, never the run: ``error``
+    then says why."""
 
     def __init__(self, folder: Path, every: int, bit_depth: int) -> None:
         self.folder, self.every, self.bit_depth = folder, every, bit_depth
+        self.error: str | None = None
         self._last = -1
+        self._queue: queue.Queue[tuple[int, np.ndarray] | None] = queue.Queue(maxsize=_FRAMES_QUEUED)
+        self._thread: threading.Thread | None = None
         if every:
             folder.mkdir(parents=True, exist_ok=True)
+            self._thread = threading.Thread(target=self._drain, name="frame-png", daemon=True)
+            self._thread.start()
 
     def maybe_write(self, sim: Universe) -> None:
-        """Write the latest frame if it is new and one of every n-th."""
+        """Queue the latest frame if it is new and one of every n-th (waits while the queue is full)."""
         fid = sim.frame_count - 1
         if not self.every or sim.last_frame is None or fid == self._last:
             return
         self._last = fid
-        if fid % self.every:
+        if fid % self.every or self.error is not None:
             return
-        img = cv2.resize(frame_to_png8(sim.last_frame, self.bit_depth), (512, 512), interpolation=cv2.INTER_AREA)
-        cv2.imwrite(str(self.folder / f"frame_{fid:05d}.png"), img)
+        self._queue.put((fid, sim.last_frame))  # the universe makes a new array for every frame: no copy
+
+    def close(self) -> None:
+        """Write what is queued and stop the thread."""
+        if self._thread is not None:
+            self._queue.put(None)
+            self._thread.join()
+            self._thread = None
+
+    def _drain(self) -> None:
+        while (item := self._queue.get()) is not None:
+            if self.error is not None:
+                continue
+            fid, frame = item
+            path = self.folder / f"frame_{fid:05d}.png"
+            try:
+                img = cv2.resize(frame_to_png8(frame, self.bit_depth), (512, 512), interpolation=cv2.INTER_AREA)
+                if not cv2.imwrite(str(path), img):
+                    raise OSError("OpenCV could not write it")
+            except (OSError, cv2.error) as exc:
+                self.error = f"{path}: {exc}; no more frame PNGs"
+                log.error("%s", self.error)
 
 
 def run(bus: Attachment, sim: Universe, bus_cfg: BusConfig, realtime: bool, clock: Clock,
@@ -85,15 +119,18 @@ def run(bus: Attachment, sim: Universe, bus_cfg: BusConfig, realtime: bool, cloc
 
 
 def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, run_id: str, out: Path,
-         realtime: bool = False) -> int:
+         realtime: bool = False, shared_memory: bool = False) -> int:
     """Run the universe node until the scenario ends or a peer fails; return the process exit code.
 
     ``build`` makes the simulator inside the node's failure handling, so a geometry it refuses is announced to
-    the other nodes like any error.
+    the other nodes like any error. ``shared_memory``: camera frames go to the OBSW through shared memory
+    (``contracts.shared_blobs``: the OBSW must run on this host).
     """
     keys = Keys(run_id)
     with zenoh.open(conf) as session:
-        bus = Attachment(session, keys, "universe", WallClock(), log)
+        bus = Attachment(session, keys, "universe", WallClock(), log, share_blobs=shared_memory)
+        if shared_memory:
+            log.info("camera frames go to the OBSW through shared memory (%s)", run_folder(run_id))
         bus.subscribe(keys.reply, StepReply)
         bus.subscribe(keys.ground_reply, GroundReply)
         bus.watch_peers()
@@ -105,10 +142,14 @@ def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, 
             wall = WallClock()
             t0 = wall.now()
             warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
-            log.info("camera kernels ready in %.1f s", wall.now() - t0)
+            attitude_rk4.warm_up()
+            log.info("camera and dynamics kernels ready in %.1f s", wall.now() - t0)
             cfg = made[0].cfg
             frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
-            run(bus, made[0], bus_cfg, realtime, WallClock(), frames)
+            try:
+                run(bus, made[0], bus_cfg, realtime, WallClock(), frames)
+            finally:
+                frames.close()  # every PNG on disk before the run is declared over (the report reads them)
 
         try:
             code, finished = bus.guarded(body)

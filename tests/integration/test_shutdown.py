@@ -83,3 +83,33 @@ def test_garbage_messages_are_counted_and_survived(tmp_path: Path) -> None:
         assert "run complete" in logs["universe"]
     finally:
         stop_nodes(procs)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and /dev/shm")
+def test_a_killed_universe_leaves_no_frame_in_shared_memory(tmp_path: Path) -> None:
+    """`flyby run` passes frames through the host's shared memory; when the universe is killed mid-run the run's
+    shared-memory folder is gone once the run has ended."""
+    from contracts.shared_blobs import run_folder
+
+    out = tmp_path / "run"
+    launcher = subprocess.Popen([sys.executable, "-m", "flyby.cli", "run", str(DATA / "short.yaml"), "--realtime",
+                                 "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    folder = run_folder(f"run-{launcher.pid}")  # the launcher names the run after its folder and its process
+    try:
+        deadline = time.monotonic() + 90
+        while not (out / "universe.log").exists() or "peers up" not in (out / "universe.log").read_text():
+            assert time.monotonic() < deadline and launcher.poll() is None, "the run never started"
+            time.sleep(0.2)
+        assert folder.is_dir(), "the universe shares no frames"
+        universe = [p for p in _processes_mentioning(str(out)) if b"-m\0universe" in
+                    Path(f"/proc/{p}/cmdline").read_bytes()]
+        assert len(universe) == 1
+        time.sleep(2.0)  # real-time pacing: frames are flowing
+        os.kill(universe[0], signal.SIGKILL)
+        text, _ = launcher.communicate(timeout=60)
+        assert launcher.returncode != 0, text
+        assert not folder.exists(), sorted(p.name for p in folder.iterdir())
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+            launcher.wait()

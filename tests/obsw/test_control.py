@@ -312,3 +312,23 @@ def test_recognition_carries_a_three_sigma_miss_through_ca() -> None:
     errors_arr = np.asarray(errors)  # the largest, 1.0 deg, is the nominal's own offset at the start
     assert errors_arr.max() < 1.45
     assert errors_arr[int(170 / dt) :].max() < 0.1  # from C/A-30 s to C/A+30 s
+
+
+def test_wheel_split_remembered_per_wheel_set_is_numpy_pinv_bit_for_bit() -> None:
+    """Wheel torques with the split remembered from earlier periods equal, to the last bit, the minimum-norm split
+    computed afresh with numpy's pinv, for every set of wheels a saturated wheel leaves usable."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        axes = PYRAMID if rng.random() < 0.5 else rng.normal(size=(3, 4))
+        torque = rng.normal(scale=1e-3, size=3)
+        momentum = rng.choice([0.0, MAX_MOMENTUM_NMS, -MAX_MOMENTUM_NMS], size=axes.shape[1])
+        got = wheel_torques_nm(torque, axes, momentum, 1.0, MAX_MOMENTUM_NMS)
+        usable = np.ones(axes.shape[1], dtype=bool)
+        for _ in range(axes.shape[1]):  # the allocation's rule, with a fresh pseudo-inverse each time
+            tau = np.zeros(axes.shape[1])
+            tau[usable] = -np.linalg.pinv(axes[:, usable]) @ torque
+            pushing = usable & (np.abs(momentum) >= MAX_MOMENTUM_NMS) & (tau * momentum > 0)
+            if not pushing.any():
+                break
+            usable &= ~pushing
+        assert got.tobytes() == tau.tobytes()

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from obsw.config import ObswConfig, TrackingConfig
-from obsw.tracking import TrackingLoop, offset_rotvec, predicted_attitude
+from obsw.tracking import TrackingLoop, offset_rotvec, predicted_attitude, quaternion_of_matrix
 from obsw.trajectory import NominalTrajectory
 
 TRAJ = NominalTrajectory(
@@ -234,3 +234,18 @@ def test_bad_inputs_are_rejected_with_the_field_named() -> None:
         loop.update(0.2, -0.1, TRAJ, None)
     with pytest.raises(ValueError, match="measured_obt_s"):
         loop.update(0.3, 0.1, TRAJ, TRAJ.los_inertial(0.3), measured_obt_s=0.4)
+
+
+def test_quaternion_of_a_matrix_is_scipys_to_the_last_bit() -> None:
+    """quaternion_of_matrix equals SciPy's from_matrix bit for bit: random rotations, products of two (as the loop
+    makes them), rotations near pi about each axis and near the identity (every branch of Markley's method), and
+    matrices SciPy orthogonalises first."""
+    rng = np.random.default_rng(7)
+    a, b = Rotation.random(2000, random_state=1).as_matrix(), Rotation.random(2000, random_state=2).as_matrix()
+    mats = [*a, *(x @ y for x, y in zip(a, b))]
+    mats += [Rotation.from_rotvec(axis * angle).as_matrix() for axis in np.eye(3)
+             for angle in np.linspace(np.pi - 1e-3, np.pi, 50)]
+    mats += [Rotation.from_rotvec(rng.standard_normal(3) * 1e-7).as_matrix() for _ in range(50)]
+    mats += [m + rng.standard_normal((3, 3)) * 1e-10 for m in a[:50]]
+    for m in mats:
+        assert quaternion_of_matrix(m).tolist() == Rotation.from_matrix(m).as_quat().tolist()

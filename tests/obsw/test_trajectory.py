@@ -116,3 +116,12 @@ def test_with_ca_changes_only_time_and_distance() -> None:
     assert u.theta_rad(130.0) == pytest.approx(np.pi / 2)
     with pytest.raises(ValidationError, match="ca_distance_km"):
         t.with_ca(0.0, -1.0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.floats(-1e6, 1e6), st.floats(-1e4, 1e4), st.floats(0.1, 1e4))
+def test_the_line_of_sight_at_one_time_is_the_array_paths_to_the_last_bit(t: float, ca_time: float,
+                                                                            d_km: float) -> None:
+    """los_inertial of one time (plain floats) equals the same time's row of the array evaluation exactly."""
+    traj = _trajectory(ca_time=ca_time, d_km=d_km)
+    assert traj.los_inertial(t).tolist() == traj.los_inertial(np.array([t]))[0].tolist()
