@@ -56,7 +56,7 @@ __all__ = [
 class Detections:
     """What the imaging subsystem reports for one frame."""
 
-    blobs: tuple[Blob, ...]
+    blobs: tuple[Blob, ...]  # the regions of at least min_body_area_px, then the parts cut out for the bodies
     didymos: Blob | None
     dimorphos: Blob | None
     didymos_offset_px: tuple[float, float] | None  # (col, row) offset of the body's centre from the image centre
@@ -72,6 +72,7 @@ class Detections:
     pair_age_frames: int = 0  # frames since ``pair`` was seen (0: in this frame)
     bad_pixels: int = 0  # pixels the bad-pixel map replaced
     outliers: int = 0  # pixels the outlier filter replaced
+    regions: int = 0  # 8-connected regions of the binarised image, the small ones included
 
 
 def _offsets(blob: Blob | None, fov_deg: float, n: int) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
@@ -135,7 +136,8 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     values8 = lut(cfg, camera.bit_depth)[image.binned.reshape(-1)[components.pixel_index]] \
         if components.pixel_index.size else np.zeros(0, dtype=np.uint8)
     regions = Regions(components, values8, n, thr.threshold_dn8)
-    blobs = regions.blobs()
+    # a region smaller than a body (noise, a defect the filter left) is counted, not described
+    blobs = regions.blobs(min_area_px=cfg.min_body_area_px)
     didymos, dimorphos = identify_bodies(blobs, cfg, previous, prediction, regions)
     pair: tuple[Blob, Blob] | None = None
     age = 0
@@ -169,4 +171,5 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
         pair_age_frames=age,
         bad_pixels=image.bad_pixels,
         outliers=int(image.outliers.size),
+        regions=int(components.area_px.size),
     )

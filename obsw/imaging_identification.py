@@ -76,10 +76,12 @@ class Regions:
     width: int
     threshold_dn8: int
     part_pixels: dict[int, np.ndarray] = field(default_factory=dict)  # label of a part -> its foreground positions
+    histograms: dict[str, np.ndarray] = field(default_factory=dict)  # "regions": each region's 8-bit histogram
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
-              image_size: int | None = None, cuts: tuple[int, ...] = ()) -> list[Blob]:
-        """The Blob records of the components (coordinates shifted by ``offset_col_row``)."""
+              image_size: int | None = None, cuts: tuple[int, ...] = (), min_area_px: int = 1) -> list[Blob]:
+        """The Blob records of the components of at least ``min_area_px`` pixels (coordinates shifted by
+        ``offset_col_row``); labels number every component."""
         c = self.components
         k = c.area_px.size
         if k == 0:
@@ -89,13 +91,16 @@ class Regions:
         # each component's brightest value: the last non-empty bin of its 256-bin histogram
         counts = np.bincount(comp * 256 + self.values8, minlength=k * 256).reshape(k, 256)
         peak = 255 - np.argmax(counts[:, ::-1] > 0, axis=1)
+        if first_label == 1:
+            self.histograms["regions"] = counts
         dx, dy = offset_col_row
         last = (image_size if image_size is not None else self.width) - 1
         out = []
-        for i, (area, cc, cr, x, y, w, h, m, p, e) in enumerate(zip(
-                c.area_px.tolist(), c.centroid_col.tolist(), c.centroid_row.tolist(), c.left.tolist(),
-                c.top.tolist(), c.width.tolist(), c.height.tolist(), mean.tolist(), peak.tolist(),
-                c.elongation.tolist(), strict=True)):
+        keep = np.flatnonzero(c.area_px >= min_area_px)
+        for i, area, cc, cr, x, y, w, h, m, p, e in zip(
+                keep.tolist(), c.area_px[keep].tolist(), c.centroid_col[keep].tolist(), c.centroid_row[keep].tolist(),
+                c.left[keep].tolist(), c.top[keep].tolist(), c.width[keep].tolist(), c.height[keep].tolist(),
+                mean[keep].tolist(), peak[keep].tolist(), c.elongation[keep].tolist(), strict=True):
             x, y = x + dx, y + dy
             centroid = (cc + dx, cr + dy)
             out.append(Blob(label=first_label + i, area_px=area, centroid_col_row=centroid,
@@ -313,15 +318,28 @@ def _near(blob: Blob, point: tuple[float, float], limit: float, oversized: bool)
     return (_box_distance(blob, point) if oversized else _distance(blob.region_centroid_col_row, point)) <= limit
 
 
+def _top_light(counts: np.ndarray, n: int, threshold_dn8: int) -> np.ndarray:
+    """Sum above ``threshold_dn8`` of the n brightest values of each row of 256-bin histograms (K, 256), over n."""
+    down = counts[:, ::-1]  # from the brightest value down
+    values = np.arange(255, -1, -1, dtype=np.int64) - threshold_dn8
+    taken = np.minimum(down, np.maximum(n - (np.cumsum(down, axis=1) - down), 0))  # the top n, bin by bin
+    return (taken * values).sum(axis=1) / n
+
+
 def aperture_dn8(regions: Regions, blob: Blob, n_pixels: int) -> float:
     """The light a body of ``n_pixels`` would hold: the mean, over ``n_pixels``, of a blob's brightest pixels above
-    its threshold (a blob with fewer pixels counts the rest as dark), 8-bit DN. A single pixel cannot set it, a small
-    star holds little of it, a faint clump of ejecta less than a lit surface."""
-    vals = regions.values8[regions.pixels_of(blob)]
+    the frame's threshold (a blob with fewer pixels counts the rest as dark), 8-bit DN. A single pixel cannot set it,
+    a small star holds little of it, a faint clump of ejecta less than a lit surface."""
     n = max(1, int(n_pixels))
-    m = min(n, vals.size)
-    top = np.partition(vals, vals.size - m)[vals.size - m:].astype(np.int64) - regions.threshold_dn8
-    return float(top.sum()) / n
+    table = regions.histograms.get("regions")
+    if table is None or blob.trimmed_from:
+        counts = np.bincount(regions.values8[regions.pixels_of(blob)], minlength=256)[None, :]
+        return float(_top_light(counts, n, regions.threshold_dn8)[0])
+    key = f"aperture {n}"
+    light = regions.histograms.get(key)
+    if light is None:  # every region's at once: many candidates share each expected area
+        light = regions.histograms[key] = _top_light(table, n, regions.threshold_dn8)
+    return float(light[blob.label - 1])
 
 
 def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, place: _Place | None,
@@ -398,7 +416,8 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
     exp = expected(prediction, cfg)
     place = _place(prediction, exp, cfg)
     prev_did, prev_dim = reference_pair(previous, cfg)
-    next_label = 1 + max(b.label for b in blobs)
+    next_label = 1 + max(max(b.label for b in blobs),
+                         0 if regions is None else int(regions.components.area_px.size))
     biggest = max(cands, key=lambda b: (b.area_px, -b.label))
     if prev_did is not None and prev_dim is not None and previous.dimorphos is prev_dim \
             and _continues_dimorphos_alone(biggest, prev_did, prev_dim, cfg):  # type: ignore[attr-defined]

@@ -250,3 +250,72 @@ def synthetic_frame(
         hot = rng.integers(0, size_px, (n_hot_pixels, 2))
         frame[hot[:, 0], hot[:, 1]] = vmax
     return frame
+
+
+@dataclass(frozen=True)
+class OpenCvMap:
+    """A bad-pixel map prepared for ``opencv_pipeline``: flat indices of the bad pixels and of their left and right
+    good neighbours (-1: none), computed once, as a flight map is."""
+
+    bad: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+
+    @classmethod
+    def of(cls, side: int, pixels_col_row: list[tuple[int, int]] | tuple, columns: list[int] | tuple) -> OpenCvMap:
+        """The map of these pixels and dead columns on a side x side frame."""
+        mask = np.zeros((side, side), dtype=bool)
+        for c, r in pixels_col_row:
+            mask[r, c] = True
+        mask[:, list(columns)] = True
+        idx = np.broadcast_to(np.arange(side), (side, side))
+        left = np.maximum.accumulate(np.where(mask, -1, idx), axis=1)
+        right = np.minimum.accumulate(np.where(mask, side, idx)[:, ::-1], axis=1)[:, ::-1]
+        rows = np.broadcast_to(np.arange(side)[:, None], (side, side))
+        bad = np.flatnonzero(mask)
+        lf = np.where(left.reshape(-1)[bad] >= 0, rows.reshape(-1)[bad] * side + left.reshape(-1)[bad], -1)
+        rt = np.where(right.reshape(-1)[bad] < side, rows.reshape(-1)[bad] * side + right.reshape(-1)[bad], -1)
+        return cls(bad=bad, left=lf, right=rt)
+
+
+def opencv_pipeline(frame: np.ndarray, bad: OpenCvMap | None = None, size_px: int = 512, bit_depth: int = 12,
+                    k_sigma: float = 5.0, margin_dn8: int = 3, outlier_k_sigma: float = 5.0,
+                    outlier_ratio: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pipeline of ``reference_pipeline`` in OpenCV's fast primitives, for the benchmark's timing: the bad-pixel
+    map by index, the outlier filter with cv2.medianBlur, cv2.resize INTER_AREA for the block means, cv2.dilate for
+    the block maxima, cv2.calcHist for the statistics, then binning, companding, threshold and
+    cv2.connectedComponentsWithStats; (stats, centroids, binned image)."""
+    side = frame.shape[0]
+    f = side // size_px
+    corrected = frame.copy()
+    if bad is not None and bad.bad.size:
+        flat = corrected.reshape(-1)
+        lv = flat[np.maximum(bad.left, 0)].astype(np.int32)
+        rv = flat[np.maximum(bad.right, 0)].astype(np.int32)
+        has_l, has_r = bad.left >= 0, bad.right >= 0
+        flat[bad.bad] = np.where(has_l & has_r, (lv + rv + 1) // 2, np.where(has_l, lv, np.where(has_r, rv,
+                                                                                             flat[bad.bad])))
+    means = cv2.resize(corrected.astype(np.float32), (size_px, size_px), interpolation=cv2.INTER_AREA)
+    binned0 = cv2.resize(corrected, (size_px, size_px), interpolation=cv2.INTER_AREA)
+    hist = cv2.calcHist([binned0], [0], None, [1 << bit_depth], [0, 1 << bit_depth]).ravel()
+    half = (binned0.size + 1) // 2
+    background = int(np.argmax(np.cumsum(hist) >= half))
+    dev = cv2.absdiff(binned0, np.full_like(binned0, background))
+    mad = int(np.argmax(np.cumsum(cv2.calcHist([dev], [0], None, [1 << bit_depth], [0, 1 << bit_depth]).ravel())
+                        >= half))
+    sigma = max(f * MAD_TO_SIGMA * mad, 1.0)
+    maxima = cv2.dilate(corrected, np.ones((f, f), np.uint8), anchor=(0, 0))[::f, ::f].astype(np.float32)
+    area = float(f * f)
+    others = (means * area - maxima) / (area - 1.0)
+    dominated = (maxima - others) > outlier_k_sigma * sigma + (outlier_ratio - 1.0) * cv2.max(others - background, 0.0)
+    dominated_px = cv2.resize(dominated.astype(np.uint8), (side, side), interpolation=cv2.INTER_NEAREST)
+    median = cv2.medianBlur(corrected, 3)
+    level = outlier_ratio * cv2.max(median.astype(np.float32) - background, 0.0) + outlier_k_sigma * sigma + background
+    outliers = (dominated_px > 0) & (corrected.astype(np.float32) > level)
+    np.copyto(corrected, median, where=outliers)
+    binned = cv2.resize(corrected, (size_px, size_px), interpolation=cv2.INTER_AREA)
+    image8 = reference_8bit(binned, bit_depth, "sqrt")
+    thr, _, _ = reference_threshold(image8, k_sigma, margin_dn8)
+    _, mask = cv2.threshold(image8, thr, 255, cv2.THRESH_BINARY)
+    _, _, stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    return stats, centroids, binned
