@@ -20,6 +20,7 @@ from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from contracts import pus  # noqa: E402
+from contracts.task import Task  # noqa: E402
 from ground.config import ReportConfig  # noqa: E402
 from obsw.recognition import measured_theta_rad  # noqa: E402
 from analysis.candidates import candidate_axes, uploaded_nominal  # noqa: E402
@@ -372,8 +373,37 @@ def mosaic_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sectio
 
 
 
+def timing_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
+    """The on-board timing from housekeeping: latencies of the line of sight, longest task times, overruns."""
+    s = Section("On-board timing", "Housekeeping: exposure to line of sight on board and line of sight to the torques "
+                "using it (top); each task's longest execution time so far at the end of the run (bottom).",
+                file_name="timing.png")
+    hk = [] if data.telemetry is None else data.telemetry.housekeeping
+    if not hk:
+        s.missing.append("no housekeeping in the telemetry")
+        return s
+    ca = figs.true_ca_obt_s
+    fig, (ax, bx) = _figure(2, 2.6)
+    for name, label in (("exposure_to_centroid_s", "exposure to line of sight"),
+                        ("centroid_to_torque_s", "line of sight to torques")):
+        pts = [(t - ca, 1e3 * getattr(h, name)) for t, h in hk if getattr(h, name) is not None]
+        if pts:
+            ax.plot(*np.array(pts).T, ".-", ms=3, lw=0.8, label=label)
+    ax.set_ylabel("latency, ms")
+    _ca_lines(ax, cfg)
+    ax.legend(fontsize=8)
+    last = hk[-1][1]
+    bx.bar([t.name for t in Task], [1e3 * x for x in last.task_time_max_s], color=TM_COLOUR)
+    bx.set_ylabel("longest execution, ms")
+    bx.tick_params(axis="x", labelsize=7)
+    s.notes.append(f"task overruns {last.task_overruns}, minor frame overruns {last.frame_overruns}, skipped "
+                   f"releases {last.skipped_releases} (to the last housekeeping)")
+    s.png = png_bytes(fig, cfg.plot_dpi)
+    return s
+
+
 def chart_sections(data: RunData, figs: RunFigures, cfg: ReportConfig) -> list[Section]:
     """Every chart section of the report, in reading order (the mosaic last)."""
     makers = (pointing_section, rate_section, wheels_section, theta_section, estimates_section, centroid_section,
-              modes_section, mosaic_section)
+              modes_section, timing_section, mosaic_section)
     return [make(data, figs, cfg) for make in makers]

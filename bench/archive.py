@@ -1,7 +1,7 @@
 """Benchmark of the telemetry archive: packets per second through decode + SQLite + tm.bin, against the link rate.
 
 Run: .venv/bin/python bench/archive.py [--packets N] [--batch B] [--repeats R]
-Traffic: housekeeping reports (107 octets) with one event and one time report every 10 packets, all distinct.
+Traffic: housekeeping reports (215 octets) with one event and one time report every 10 packets, all distinct.
 Reported: median over repeats of the decode-only rate, the archive rate (store + final flush, into a fresh
 file each repeat), and the highest rate the downlink can deliver with HK-sized packets.
 """
@@ -74,7 +74,8 @@ def main() -> None:
     print(f"packets: {len(packets)}, batch {args.batch}, repeats {args.repeats}")
     print(f"decode only:        {statistics.median(decode_rates):8.0f} packets/s")
     print(f"archive (store):    {statistics.median(store_rates):8.0f} packets/s")
-    print(f"downlink maximum:   {link:8.0f} packets/s ({LinkConfig().downlink_rate_bps:.0f} bit/s, 107-octet HK)")
+    print(f"downlink maximum:   {link:8.0f} packets/s ({LinkConfig().downlink_rate_bps:.0f} bit/s, "
+          f"{len(packets[0])}-octet HK)")
 
 
 if __name__ == "__main__":

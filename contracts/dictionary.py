@@ -43,6 +43,7 @@ from contracts.packet import (
     field,
 )
 from contracts.packet_errors import MAX_APID, MAX_SEQ_COUNT, PacketError, RequestId
+from contracts.task import TASK_COUNT, Task
 from contracts.wire import (
     F32,
     F64,
@@ -59,6 +60,7 @@ from contracts.wire import (
     Mode8,
     ObtS,
     Rid,
+    Task8,
     Text,
     UnitVector,
     packet_len,
@@ -127,6 +129,8 @@ class EventId(IntEnum):
     COMMAND_REJECTED = 6
     CLOCK_JUMP = 7
     SECURITY_REJECTION = 8
+    TASK_OVERRUN = 9
+    FRAME_OVERRUN = 10
 
 
 # Service 17 ---------------------------------------------------------------------------------------------
@@ -189,12 +193,18 @@ class Verification(Report, service=1, subtypes={1: _FAILURE, 2: (), 3: _FAILURE,
 _NAN = math.nan
 
 
+_PER_TASK = tuple[(F32,) * TASK_COUNT]  # type: ignore[misc]
+_NO_TIMES = (0.0,) * TASK_COUNT
+_TASKS = " ".join(t.name for t in Task)
+
+
 class Housekeeping(Report, service=3, subtype=25):
     """Housekeeping parameter report of the navigation chain; absent values are NaN with their flag cleared."""
 
     sid: ClassVar[Constant] = Constant(UINT16, HK_SID, "structure id")
     mode: Mode8 = field("current on-board mode")
-    flags: ClassVar[Validity] = Validity("validity: bit0 pointing error, bit1 best trajectory, bit2 best-grid MSE")
+    flags: ClassVar[Validity] = Validity("validity: bit0 pointing error, bit1 best trajectory, bit2 best-grid MSE, "
+                                         "bit3 exposure-to-centroid latency, bit4 centroid-to-torque latency")
     wheel_count: ClassVar[Count] = Count(UINT8, 1, HK_WHEEL_SLOTS, "number of wheels in use")
     q: tuple[F32, F32, F32, F32] = field("estimated attitude body->inertial, scalar-last x y z w")
     rate_rad_s: tuple[F32, F32, F32] = field("estimated body rate, x y z", "rad/s")
@@ -212,6 +222,19 @@ class Housekeeping(Report, service=3, subtype=25):
                                  default=0)
     tc_rejected_replay: U16 = field("uplinked TCs refused for an anti-replay sequence number at or below the last "
                                     "accepted one (saturates)", default=0)
+    task_time_last_s: _PER_TASK = field("execution time of each task's last run, in task order: " + _TASKS, "s",
+                                        default=_NO_TIMES)
+    task_time_max_s: _PER_TASK = field("longest execution time of each task since start, in task order: " + _TASKS,
+                                       "s", default=_NO_TIMES)
+    exposure_to_centroid_s: F32 | None = field("from the exposure of the last frame the control used to its line of "
+                                               "sight being available on board", "s", default=None, bit=3)
+    centroid_to_torque_s: F32 | None = field("from that line of sight being available to the end of the control "
+                                             "task that used it (the torques' update)", "s", default=None, bit=4)
+    task_overruns: U32 = field("task runs that finished after their slot's deadline, since start", default=0)
+    frame_overruns: U32 = field("minor frames whose work was still running at the next tick, since start",
+                                default=0)
+    skipped_releases: U32 = field("task releases skipped because the processor was busy past the slot's deadline, "
+                                  "since start", default=0)
 
     @model_validator(mode="after")
     def _consistent(self) -> Housekeeping:
@@ -307,6 +330,28 @@ class ClockJumpEvent(EventReport):
     EVENT_ID: ClassVar[EventId] = EventId.CLOCK_JUMP
     severity: Severity = _severity(Severity.MEDIUM)
     step_s: Finite = field("OBT step beyond the control period (negative: backwards)", "s")
+
+
+class TaskOverrunEvent(EventReport):
+    """A task finished after its slot's deadline; raised on the first of a run of overruns of that task (the
+    housekeeping counts every one)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.TASK_OVERRUN
+    severity: Severity = _severity(Severity.MEDIUM)
+    task: Task8 = field("the task that overran")
+    minor_frame: U8 = field("its minor frame in the major frame")
+    execution_s: F32 = field("its execution time", "s", ge=0)
+    late_s: F32 = field("how long after its deadline it finished", "s", ge=0)
+
+
+class FrameOverrunEvent(EventReport):
+    """The work of a minor frame was still running at the next tick; raised on the first of a run of such frames
+    (the housekeeping counts every one)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.FRAME_OVERRUN
+    severity: Severity = _severity(Severity.MEDIUM)
+    minor_frame: U8 = field("the minor frame in the major frame")
+    late_s: F32 = field("how long after the next tick its work ended", "s", ge=0)
 
 
 class CommandRejectedEvent(EventReport):

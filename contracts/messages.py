@@ -77,6 +77,16 @@ class StepRequest(Message):
     sensors: SensorData
     uplink: tuple[bytes, ...] = Field(default=(), description="telecommand packets received this period")
     frame: FrameMeta | None = None
+    cpu_slowdown: float = Field(
+        1.0, ge=1.0, allow_inf_nan=False, description="hardware reading for the OBSW node's processor model: the "
+        "processor runs this many times slower than nominal over this period (1: nominal); flight logic never "
+        "reads it"
+    )
+    imaging_delay_s: float = Field(
+        0.0, ge=0.0, allow_inf_nan=False, description="hardware reading for the OBSW node's processor model: extra "
+        "delay, s, before this period's frame reaches the processor (the camera interface); flight logic never "
+        "reads it"
+    )
 
 
 class StepReply(Message):
@@ -87,6 +97,10 @@ class StepReply(Message):
     frame_request: FrameRequest | None = None
     downlink: tuple[bytes, ...] = Field(default=(), description="telemetry packets sent this period")
     clock_adjust_s: float | None = Field(None, description="commanded step of the on-board clock, from next period")
+    actuation_delay_s: float = Field(
+        0.0, ge=0.0, allow_inf_nan=False, description="the wheels take the new torques this long after the start of "
+        "the period (the control task's modelled finish), s; the previous torques act until then"
+    )
 
 
 class TruthRecord(Frozen):

@@ -116,6 +116,17 @@ class KeyRing:
         """Fresh random keys for ``spis``, the first one active (the others are spares to switch to)."""
         return cls(tuple(SecurityAssociation(spi, secrets.token_bytes(KEY_LEN)) for spi in spis), spis[0])
 
+    @classmethod
+    def derived(cls, seed: int, spis: tuple[int, ...] = (1, 2)) -> KeyRing:
+        """Keys fixed by ``seed``, for runs that must reproduce their uplink byte for byte (in-process runs and
+        campaigns, where nobody else is on the link): not secret, never for a run on a bus others can reach."""
+        digest = hashlib.sha256(f"flyby in-process keys, seed {seed}".encode())
+        keys = []
+        for spi in spis:
+            digest.update(spi.to_bytes(2, "big"))
+            keys.append(SecurityAssociation(spi, digest.digest()[:KEY_LEN]))
+        return cls(tuple(keys), spis[0])
+
     def to_json(self) -> str:
         """The key file's text."""
         return json.dumps({"format": KEY_FILE_FORMAT, "algorithm": ALGORITHM, "active_spi": self.active_spi,

@@ -17,6 +17,7 @@ from pydantic import AfterValidator, Field
 from contracts.cuc import CUC_LEN, MAX_OBT_S, CucError, cuc_decode, cuc_encode
 from contracts.mode import Mode, ModeValue
 from contracts.packet_errors import BadArgument, RequestId
+from contracts.task import Task, TaskValue
 
 PRIMARY_HEADER_LEN = 6
 MAX_TEXT_OCTETS = 255
@@ -375,3 +376,4 @@ ObtS = Annotated[float, Field(ge=0.0, le=MAX_OBT_S), CucWire()]
 Rid = Annotated[RequestId, RequestIdWire()]
 UnitVector = tuple[Finite, Finite, Finite]
 Mode8 = Annotated[ModeValue, EnumCode(Mode, UINT8)]
+Task8 = Annotated[TaskValue, EnumCode(Task, UINT8)]

@@ -11,6 +11,8 @@ from pydantic import Field, field_validator, model_validator
 
 from contracts.checks import inertia_problem
 from contracts.model import Config
+from obsw.table import ScheduleTable
+from obsw.timing import TimingConfig
 
 
 class ControlConfig(Config):
@@ -115,6 +117,12 @@ class TrackingConfig(Config):
         description="in AUTONOMOUS_TRACKING, extend the measured offset along its slope between frames (False: "
         "hold it; the recognised trajectory carries the LOS motion, so a slope is noise or a misidentified "
         "blob, and one at C/A+48 s drove the pointing 1.2 deg off in 3 s of extrapolation)",
+    )
+    propagate_late_measurements: bool = Field(
+        True,
+        description="a line of sight that reaches the loop after its exposure is taken against the trajectory at "
+        "its exposure time, so the trajectory carries it to the present (False: as if exposed when it reached the "
+        "loop, the stale direction against the present prediction; for comparing the two in bench/latency.py)",
     )
     plane_normal_axis_body: tuple[float, float, float] = Field(
         (0.0, 1.0, 0.0),
@@ -378,6 +386,9 @@ class ObswConfig(Config):
     recognition: RecognitionConfig = RecognitionConfig()
     tracking: TrackingConfig = TrackingConfig()
     imaging: ImagingConfig = ImagingConfig()
+    executive: ScheduleTable = Field(ScheduleTable(), description="the executive's schedule table (obsw.table)")
+    timing: TimingConfig = Field(TimingConfig(), description="execution times on the modelled on-board computer "
+                                 "(obsw.timing)")
 
     @field_validator("inertia_kgm2")
     @classmethod

@@ -67,6 +67,11 @@ class TrajectoryRecognizer:
         """Number of measurements accumulated."""
         return len(self._meas_t)
 
+    @property
+    def measurement_times_obt_s(self) -> tuple[float, ...]:
+        """The time stamps of the measurements accumulated, OBT s, in the order they were added."""
+        return tuple(self._meas_t)
+
     def add_measurement(self, obt_s: float, los_inertial: ArrayLike) -> None:
         """Accumulate one measured LOS (inertial unit vector spacecraft -> target, ``R(q) @ los_body``) at ``obt_s``.
 

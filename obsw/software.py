@@ -1,19 +1,32 @@
-"""The flight software core: one call per control period, on on-board time only.
+"""The flight software core: one call per control period (a minor frame of the executive), on on-board time only.
 
-``FlightSoftware.step`` takes what the hardware read during the period (OBT, sensors, received telecommands,
-a camera frame) and returns what the software commands (wheel torques, a frame request, telemetry packets).
-Inside, in this order each period:
+``FlightSoftware.step`` takes what the hardware read during the period (OBT, sensors, received telecommands, a
+camera frame, the processor's speed) and returns what the software commands (wheel torques and when they take
+effect, a frame request, telemetry packets). Inside, the executive (``obsw.executive``) releases the tasks in the
+slots of the schedule table (``obsw.table``; by default all of them, in this order, every minor frame):
 
-1. telecommands received are decoded, verified (PUS service 1) and executed; a bad one is answered with a
-   failure report and nothing else is lost;
-2. scheduled commands whose tag has come (PUS service 11) are released and executed;
-3. the attitude estimate is taken from the star tracker (propagated with the gyro during an outage);
-4. a frame, if one arrived, goes through the imaging chain; Dimorphos's line of sight feeds the tracking loop
-   and the trajectory recognition;
-5. the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
+1. TIME: an OBT jump is reported; a service 9 time report goes out when due;
+2. TELECOMMANDS: telecommands received are decoded, verified (PUS service 1) and executed; a bad one is answered
+   with a failure report and nothing else is lost;
+3. SCHEDULE: scheduled commands whose tag has come (PUS service 11) are released and executed;
+4. ATTITUDE: the attitude estimate is taken from the star tracker (propagated with the gyro during an outage);
+5. IMAGING: a frame whose readout and FPGA stages are over goes through the software stage of the imaging chain;
+   Dimorphos's line of sight, turned inertial with the attitude at its exposure, is a measurement from the task's
+   finish on;
+6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time;
+7. MODES: the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
    on-board estimate, end of flyby);
-6. the tracking loop and the PD controller give the wheel torques;
-7. housekeeping, time reports and events go into the downlink.
+8. CONTROL: the tracking loop (with the latest measurement, taken at its exposure) and the PD controller give the
+   wheel torques; a wheel reaching its momentum limit fails a parameter check;
+9. FDIR: a failed parameter check is reported and recovered (SAFE);
+10. CAMERA: a frame is requested at the imaging cadence;
+11. TELEMETRY: housekeeping, with the executive's timing, and the estimate report go into the downlink.
+
+Each task takes the execution time of the timing model (``obsw.timing``); what a task produces exists on board
+from its modelled finish, so a line of sight is used only once the frame's readout, FPGA stages and software stage
+are over, and the torques take effect when the control task ends. With ``timing.modelled`` false every task takes
+no time and the order above is the zero-time flight software's. The processor's slow-down and the camera
+interface's delay are hardware readings for the processor model; flight logic never reads them.
 
 It never reads the clock, the bus or the disk: the node feeds it.
 """
@@ -23,31 +36,54 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from contracts import pus, sdls
-from contracts.messages import FrameRequest, StepReply, StepRequest
+from contracts.messages import FrameMeta, FrameRequest, StepReply, StepRequest
 from contracts.mode import Mode
+from contracts.task import Task
 from obsw.config import ObswConfig
 from obsw.control import pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
+from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
 from obsw.modes import CaEstimate, Cause, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.recognition import TrajectoryRecognizer
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
 from obsw.tc_security import TcSecurity
+from obsw.timing import TimingModel, Work
 from obsw.tm_counters import TmCounters
 from obsw.tracking import Reference, TrackingLoop
 from obsw.trajectory import NominalTrajectory
 from obsw.verification import TcVerification
 
 TRACKING_MODES = (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING)
-ATTITUDE_HISTORY_PERIODS = 32  # attitude estimates kept to turn a frame's LOS with the attitude at its exposure
+# attitude estimates kept to turn a frame's LOS with the attitude at its exposure: 6.4 s at 10 Hz, past the 1 s
+# latencies of bench/latency.py with room for a backlog of frames
+ATTITUDE_HISTORY_PERIODS = 64
 POINTING_MODES = (Mode.ACQUISITION, *TRACKING_MODES)
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    """Dimorphos's line of sight measured in one frame: inertial unit vector, and the frame's exposure time (OBT)."""
+
+    exposure_obt_s: float
+    los_inertial: np.ndarray
+    frame_id: int
+
+
+@dataclass(frozen=True, slots=True)
+class WheelLimit:
+    """A failed parameter check: a wheel at its momentum limit."""
+
+    wheel: int
+    momentum_nms: float
 
 
 def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
@@ -105,6 +141,24 @@ class FlightSoftware:
         self._clock_adjust_s: float | None = None
         self.last_reference: Reference | None = None
         self.pointing_error_est_rad: float | None = None
+        n_wheels = self.axes.shape[1]
+        # what the attitude task determined this period, for the tasks after it
+        self._q = np.array([0.0, 0.0, 0.0, 1.0])
+        self._omega = np.zeros(3)
+        self._wheel_speed = np.zeros(n_wheels)
+        self._wheel_h = np.zeros(n_wheels)
+        self._torque = np.zeros(n_wheels)
+        self._req: StepRequest | None = None
+        self._frame_request_out: FrameRequest | None = None
+        # timing, for the reply and the housekeeping
+        self.timing = TimingModel(cfg.timing)
+        self._actuation_delay_s = 0.0
+        self._exposure_to_centroid_s: float | None = None
+        self._centroid_to_torque_s: float | None = None
+        self._overrunning = {t: False for t in Task}
+        self._frame_overrunning = False
+        self.last_frame: FrameReport | None = None
+        self.executive = self._executive()
         # what each telecommand does on board; a TC of the dictionary without an entry is refused
         self._handlers: dict[type, Callable[[Any, float], None]] = {
             pus.Ping: self._ping,
@@ -138,35 +192,177 @@ class FlightSoftware:
         return out
 
     def step(self, req: StepRequest, frame: np.ndarray | None) -> StepReply:
-        """One control period: see the module docstring for the order of work."""
-        obt = req.obt_s
-        # the loops advance by the control period, not by OBT differences: a clock jump is not a long period
-        dt = self.cfg.control_period_s
+        """One control period, one minor frame of the executive: see the module docstring for the order of work."""
+        tick = req.obt_s
         self._tm = []
-        self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
-        if self._prev_obt is not None and abs(obt - self._prev_obt - dt) > self.cfg.clock_jump_threshold_s:
-            jump = obt - self._prev_obt - dt
-            self._time_status = pus.TimeReferenceStatus.STEPPED
-            self._event(pus.ClockJumpEvent(step_s=jump), obt, f"on-board time jumped by {jump:+.6f} s")
-        self._prev_obt = obt
-        self._time_report(obt)
-        for unit in req.uplink:
-            packet = self._authenticated(unit, obt)
-            if packet is not None:
-                self._telecommand(packet, obt, scheduled=False)
-        for entry in self.schedule.release_due(obt):
-            self._telecommand(entry.payload, obt, scheduled=True)  # type: ignore[arg-type]
-        q, omega = self._attitude(req, dt)
-        wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
-        wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ omega + wheel_speed)
-        seen = self._image(frame, req) if req.frame is not None else None
-        self._mode_by_events(obt, seen is not None)
-        torque = self._control(obt, dt, q, omega, wheel_h, seen)
-        frame_request = self._frame_request(obt)
-        self._periodic_tm(obt, q, omega, wheel_speed, wheel_h)
+        self._time_status = pus.TimeReferenceStatus.FREE_RUNNING  # until the time task finds a step
+        self._req = req
+        self._frame_request_out = None
+        for raw in req.uplink:
+            self.executive.post(EventKind.TC_ARRIVED, tick, raw)
+        meta = req.frame
+        if meta is not None and (frame is not None or meta.measurement is not None):
+            # a frame, or at centroid-level fidelity the modelled output of its imaging chain, which takes as long
+            n = self.cfg.imaging.binned_size_px
+            # the processor model: the frame leaves the FPGA after the rest of its exposure, its readout and the
+            # FPGA stages, and whatever the camera interface adds (a hardware reading)
+            delay = self.timing.frame_delay_s(meta.width, meta.height, meta.bit_depth, meta.exposure_s, n * n)
+            self.executive.post(EventKind.FRAME_READY, meta.obt_s + delay + req.imaging_delay_s, (frame, meta))
+        report = self.executive.minor_frame(tick, req.cpu_slowdown)
+        self.last_frame = report
+        if report.overrun and not self._frame_overrunning:
+            next_tick = tick + self.cfg.control_period_s  # the tick that finds the work still running
+            late = report.busy_until_s - next_tick
+            self._event(pus.FrameOverrunEvent(minor_frame=report.minor_frame, late_s=late), next_tick,
+                        f"minor frame {report.minor_frame} overran the next tick by {late * 1e3:.1f} ms")
+        self._frame_overrunning = report.overrun
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
-        return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in torque), clock_adjust_s=adjust,
-                         frame_request=frame_request, downlink=tuple(self._tm))
+        return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in self._torque), clock_adjust_s=adjust,
+                         frame_request=self._frame_request_out, downlink=tuple(self._tm),
+                         actuation_delay_s=self._actuation_delay_s)
+
+    # -- the executive's tasks -----------------------------------------------------------------------------
+    def _executive(self) -> Executive:
+        """The executive with this software's tasks, their subscriptions and the schedule's timer."""
+        e = EventKind
+        tasks = {
+            Task.TIME: TaskSpec(self._task_time),
+            Task.TELECOMMANDS: TaskSpec(self._task_telecommands, frozenset({e.TC_ARRIVED}), periodic=False),
+            Task.SCHEDULE: TaskSpec(self._task_schedule, frozenset({e.TAG_DUE}), periodic=False),
+            Task.ATTITUDE: TaskSpec(self._task_attitude),
+            Task.IMAGING: TaskSpec(self._task_imaging, frozenset({e.FRAME_READY}), periodic=False),
+            Task.RECOGNITION: TaskSpec(self._task_recognition, frozenset({e.MEASUREMENT}), periodic=False),
+            Task.MODES: TaskSpec(self._task_modes, frozenset({e.MEASUREMENT})),
+            Task.CONTROL: TaskSpec(self._task_control, frozenset({e.MEASUREMENT})),
+            Task.FDIR: TaskSpec(self._task_fdir, frozenset({e.PARAM_CHECK_FAILED}), periodic=False),
+            Task.CAMERA: TaskSpec(self._task_camera),
+            Task.TELEMETRY: TaskSpec(self._task_telemetry),
+        }
+        ex = Executive(self.cfg.executive, self.cfg.control_period_s, tasks, self.timing.execution_s, self._observe)
+        ex.add_timer(e.TAG_DUE, lambda: self.schedule.next_tag_obt_s)
+        return ex
+
+    def _observe(self, run: Run) -> None:
+        """After each run: the torques' actuation time, the latencies of the measurement used, overrun events."""
+        if run.task == Task.CONTROL:
+            tick = self._tick_s()
+            self._actuation_delay_s = min(max(run.finish_s - tick, 0.0), self.cfg.control_period_s)
+            used = [e for e in run.events if e.kind == EventKind.MEASUREMENT]
+            if used:
+                latest = used[-1]
+                m: Measurement = latest.payload  # type: ignore[assignment]
+                self._exposure_to_centroid_s = latest.time_s - m.exposure_obt_s
+                self._centroid_to_torque_s = run.finish_s - latest.time_s
+        if not run.ran:
+            return
+        if run.overrun and not self._overrunning[run.task]:
+            late = run.finish_s - run.deadline_s
+            self._event(pus.TaskOverrunEvent(task=run.task, minor_frame=run.minor_frame, execution_s=run.execution_s,
+                                             late_s=late), run.deadline_s,
+                        f"{run.task.name} overran its slot by {late * 1e3:.1f} ms in minor frame {run.minor_frame}")
+        self._overrunning[run.task] = run.overrun
+
+    def _task_time(self, act: Activation) -> Work:
+        """Time management: an OBT step beyond the control period is reported; a time report when due."""
+        tick = act.tick_s
+        dt = self.cfg.control_period_s
+        if self._prev_obt is not None and abs(tick - self._prev_obt - dt) > self.cfg.clock_jump_threshold_s:
+            jump = tick - self._prev_obt - dt
+            self._time_status = pus.TimeReferenceStatus.STEPPED
+            self._event(pus.ClockJumpEvent(step_s=jump), act.now_s, f"on-board time jumped by {jump:+.6f} s")
+        self._prev_obt = tick
+        self._time_report(tick)
+        return Work()
+
+    def _task_telecommands(self, act: Activation) -> Work:
+        """The telecommands received, in order of arrival, each authenticated first."""
+        tcs = act.of(EventKind.TC_ARRIVED)
+        for ev in tcs:
+            packet = self._authenticated(ev.payload, act.now_s)  # type: ignore[arg-type]
+            if packet is not None:
+                self._telecommand(packet, act.now_s, scheduled=False)
+        return Work(commands=len(tcs))
+
+    def _task_schedule(self, act: Activation) -> Work:
+        """The scheduled commands whose tag has come, in release order."""
+        due = self.schedule.release_due(act.now_s)
+        for entry in due:
+            self._telecommand(entry.payload, act.now_s, scheduled=True)  # type: ignore[arg-type]
+        return Work(commands=len(due))
+
+    def _task_attitude(self, act: Activation) -> Work:
+        """The attitude, rate and wheel momenta of this period."""
+        req = self._req
+        assert req is not None
+        self._q, self._omega = self._attitude(req, self.cfg.control_period_s)
+        self._wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
+        self._wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ self._omega + self._wheel_speed)
+        return Work()
+
+    def _task_imaging(self, act: Activation) -> Work:
+        """The software stage of the imaging chain for each frame out of the FPGA, oldest first."""
+        frames = act.of(EventKind.FRAME_READY)
+        regions = pixels = 0
+        for ev in frames:
+            frame, meta = ev.payload  # type: ignore[misc]
+            det = self._image(frame, meta, act)
+            regions += len(det.blobs)
+            pixels += sum(b.area_px for b in det.blobs)
+        return Work(frames=len(frames), regions=regions, foreground_px=pixels)
+
+    def _task_recognition(self, act: Activation) -> Work:
+        """The new measurements into the recognition, at their exposure time; the continuous estimate solved again."""
+        new = act.of(EventKind.MEASUREMENT)
+        rec = self.recognizer
+        if rec is None:  # no nominal trajectory yet: nothing to recognise against
+            return Work()
+        for ev in new:
+            m: Measurement = ev.payload  # type: ignore[assignment]
+            rec.add_measurement(m.exposure_obt_s, m.los_inertial)
+        rec.continuous()
+        r = self.cfg.recognition
+        return Work(candidates=r.grid_time_points * r.grid_distance_points * len(new),
+                    measurements=rec.measurement_count)
+
+    def _task_modes(self, act: Activation) -> Work:
+        """The mode manager on this period's detections and time."""
+        self._mode_by_events(act.now_s, bool(act.of(EventKind.MEASUREMENT)))
+        return Work()
+
+    def _task_control(self, act: Activation) -> Work:
+        """The wheel torques from the tracking loop and the PD law; the wheel momentum limit is checked."""
+        used = act.of(EventKind.MEASUREMENT)
+        seen = None if not used else used[-1].payload
+        # the loops advance by the control period, not by OBT differences: a clock jump is not a long period
+        tau = self._control(act.tick_s, self.cfg.control_period_s, self._q, self._omega, self._wheel_h,
+                            seen)  # type: ignore[arg-type]
+        self._torque = tau
+        wheel_h = self._wheel_h
+        saturated = bool(np.any(np.abs(wheel_h) >= self.max_momentum_nms))
+        if saturated and not self._wheel_saturated:
+            worst = int(np.argmax(np.abs(wheel_h)))
+            act.emit(EventKind.PARAM_CHECK_FAILED, WheelLimit(worst, float(wheel_h[worst])))
+        self._wheel_saturated = saturated
+        return Work()
+
+    def _task_fdir(self, act: Activation) -> Work:
+        """Each failed parameter check reported and recovered: a wheel at its limit sends the spacecraft to SAFE."""
+        checks = act.of(EventKind.PARAM_CHECK_FAILED)
+        for ev in checks:
+            w: WheelLimit = ev.payload  # type: ignore[assignment]
+            self._event(pus.WheelSaturationEvent(wheel=w.wheel, momentum_nms=w.momentum_nms), act.now_s,
+                        f"wheel {w.wheel} saturated at {w.momentum_nms:+.4f} N m s")
+            self._mode_event(self.modes.handle(WheelSaturation(w.wheel), act.now_s), act.now_s)
+        return Work(checks=len(checks))
+
+    def _task_camera(self, act: Activation) -> Work:
+        """A frame request when the imaging cadence is due."""
+        self._frame_request_out = self._frame_request(act.tick_s)
+        return Work()
+
+    def _task_telemetry(self, act: Activation) -> Work:
+        """Housekeeping and estimate reports when due."""
+        return Work(packets=self._periodic_tm(act.now_s))
 
     # -- telemetry -----------------------------------------------------------------------------------------
     def _send(self, report: pus.TmReport, obt: float, destination_id: int | None = None) -> None:
@@ -250,7 +446,7 @@ class FlightSoftware:
         if cmd.period_s is not None:
             self.frame_period_s = cmd.period_s
         self.imaging = True
-        self._next_frame_obt = obt
+        self._next_frame_obt = self._tick_s()  # the cadence counts in ticks: frames are exposed at a tick
 
     def _stop_imaging(self, cmd: pus.StopImaging, obt: float) -> None:
         self.imaging = False
@@ -362,36 +558,39 @@ class FlightSoftware:
         return min(self._attitude_history, key=lambda e: abs(e[0] - obt_s))[1]
 
     # -- imaging -------------------------------------------------------------------------------------------
-    def _image(self, frame: np.ndarray | None, req: StepRequest) -> tuple[float, np.ndarray] | None:
-        """Process a frame; return (exposure OBT s, measured inertial LOS of Dimorphos), or None if not seen."""
-        meta = req.frame
-        assert meta is not None
+    def _image(self, frame: np.ndarray | None, meta: FrameMeta, act: Activation) -> Detections:
+        """Process a frame (at centroid-level fidelity, take its modelled detections); if Dimorphos is seen, emit its
+        measured inertial LOS stamped with the exposure."""
         if frame is not None:
             # what the frame should show, from the trajectory the camera follows and the attitude at the exposure
             prediction = predict_frame(self._attitude_at(meta.obt_s), self.cfg.targets, self.camera,
                                        self.cfg.imaging, self.pointing_trajectory(), meta.obt_s)
             det = process_frame(frame, self.cfg.imaging, self.detections, self.camera, bad_pixels=self.bad_pixels,
                                 prediction=prediction)
-        elif meta.measurement is not None:  # centroid-level fidelity: the imaging chain's output comes modelled
-            det = measured_detections(meta.measurement, self.cfg.imaging, self.camera)
         else:
-            return None
+            assert meta.measurement is not None
+            det = measured_detections(meta.measurement, self.cfg.imaging, self.camera)
         self.detections = det
         obt = meta.obt_s
         if det.dimorphos is None or det.dimorphos_offset_px is None:
-            self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=None, didymos_col_row=_col_row(det.didymos),
-                                            dimorphos_area_px=0, los_inertial=None), obt)
-            return None
+            self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=None,
+                                            didymos_col_row=_col_row(det.didymos), dimorphos_area_px=0,
+                                            los_inertial=None), obt)
+            return det
         d_col, d_row = det.dimorphos_offset_px
         los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
         los_i = Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
         self._last_seen_obt = obt
-        if self.recognizer is not None:
-            self.recognizer.add_measurement(obt, los_i)
+        act.emit(EventKind.MEASUREMENT, Measurement(obt, los_i, meta.frame_id))
         self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=det.dimorphos.centroid_col_row,
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
-        return obt, los_i
+        return det
+
+    def _tick_s(self) -> float:
+        """OBT of this minor frame's tick."""
+        assert self._req is not None
+        return self._req.obt_s
 
     def _frame_request(self, obt: float) -> FrameRequest | None:
         if not self.imaging or self._next_frame_obt is None or obt < self._next_frame_obt:
@@ -413,7 +612,7 @@ class FlightSoftware:
         if ev.cause == Cause.TARGET_LOST and self._last_seen_obt is not None:
             self._event(pus.TargetLostEvent(unseen_s=obt - self._last_seen_obt), obt, "target lost")
         if ev.to_mode in POINTING_MODES and not self.imaging:
-            self.imaging, self._next_frame_obt = True, obt
+            self.imaging, self._next_frame_obt = True, self._tick_s()
         if ev.to_mode == Mode.AUTONOMOUS_TRACKING and self.recognizer is not None and self.trajectory is not None:
             t_ca, d_ca = self.best_estimate()
             self.trajectory = self.trajectory.with_ca(t_ca, d_ca)
@@ -457,15 +656,16 @@ class FlightSoftware:
         return self.autonomous_trajectory
 
     def _control(self, obt: float, dt: float, q: np.ndarray, omega: np.ndarray, wheel_h: np.ndarray,
-                 seen: tuple[float, np.ndarray] | None) -> np.ndarray:
-        los_i = None if seen is None else seen[1]
+                 seen: Measurement | None) -> np.ndarray:
         traj = self.pointing_trajectory()
+        tc = self.cfg.tracking
         if self.modes.mode in POINTING_MODES and traj is not None:
             meas = seen if self.modes.mode in TRACKING_MODES else None
             autonomous = self.modes.mode == Mode.AUTONOMOUS_TRACKING and traj is self.autonomous_trajectory
-            tc = self.cfg.tracking
-            ref = self.tracking.update(obt, dt, traj, None if meas is None else meas[1],
-                                       measured_obt_s=None if meas is None else min(meas[0], obt),
+            # a late measurement is taken at its exposure, unless the comparison without propagation is asked for
+            taken = None if meas is None else min(meas.exposure_obt_s, obt) if tc.propagate_late_measurements else obt
+            ref = self.tracking.update(obt, dt, traj, None if meas is None else meas.los_inertial,
+                                       measured_obt_s=taken,
                                        extrapolate=tc.autonomous_extrapolation or not autonomous,
                                        gate_rad=math.radians(tc.autonomous_gate_deg) if autonomous else None)
         else:  # hold the current attitude, rate to zero
@@ -474,18 +674,12 @@ class FlightSoftware:
             ref = Reference(q_des=q if self.last_reference is None else self.last_reference.q_des,
                             omega_des_body=np.zeros(3), alpha_des_body=np.zeros(3))
         self.last_reference = ref
-        boresight_now = Rotation.from_quat(q).apply(np.asarray(self.camera.boresight_body, dtype=float))
-        if los_i is not None:
-            self.pointing_error_est_rad = float(np.arccos(np.clip(boresight_now @ los_i, -1, 1)))
+        if seen is not None:  # the boresight at the exposure against the LOS measured then
+            q_exposure = self._attitude_at(seen.exposure_obt_s)
+            boresight = Rotation.from_quat(q_exposure).apply(np.asarray(self.camera.boresight_body, dtype=float))
+            self.pointing_error_est_rad = float(np.arccos(np.clip(boresight @ seen.los_inertial, -1, 1)))
         body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)
         tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms)
-        saturated = bool(np.any(np.abs(wheel_h) >= self.max_momentum_nms))
-        if saturated and not self._wheel_saturated:
-            worst = int(np.argmax(np.abs(wheel_h)))
-            self._event(pus.WheelSaturationEvent(wheel=worst, momentum_nms=float(wheel_h[worst])), obt,
-                        f"wheel {worst} saturated at {wheel_h[worst]:+.4f} N m s")
-            self._mode_event(self.modes.handle(WheelSaturation(worst), obt), obt)
-        self._wheel_saturated = saturated
         if not np.all(np.isfinite(tau)):
             raise InternalFault(f"non-finite wheel torque {tau.tolist()} at OBT {obt}")
         return tau
@@ -500,8 +694,11 @@ class FlightSoftware:
                 self._time_reports_left -= 1
 
     # -- periodic telemetry ----------------------------------------------------------------------------------
-    def _periodic_tm(self, obt: float, q: np.ndarray, omega: np.ndarray, wheel_speed: np.ndarray,
-                     wheel_h: np.ndarray) -> None:
+    def _periodic_tm(self, obt: float) -> int:
+        """Housekeeping and the estimate report when due; the number of packets sent."""
+        q, omega, wheel_speed, wheel_h = self._q, self._omega, self._wheel_speed, self._wheel_h
+        ex = self.executive
+        sent = 0
         if self._hk_next is None or obt >= self._hk_next:
             self._hk_next = (obt if self._hk_next is None else self._hk_next) + self.cfg.housekeeping_period_s
             best_t = best_d = mse = None
@@ -512,7 +709,12 @@ class FlightSoftware:
                 rate_rad_s=tuple(float(c) for c in omega), wheel_speed_rad_s=tuple(float(c) for c in wheel_speed),
                 wheel_momentum_nms=tuple(float(c) for c in wheel_h), pointing_error_rad=self.pointing_error_est_rad,
                 best_ca_obt_s=best_t, best_ca_distance_km=best_d, best_mse_rad2=mse,
+                task_time_last_s=tuple(ex.last_execution_s[t] for t in Task),
+                task_time_max_s=tuple(ex.max_execution_s[t] for t in Task),
+                exposure_to_centroid_s=self._exposure_to_centroid_s, centroid_to_torque_s=self._centroid_to_torque_s,
+                task_overruns=ex.task_overruns, frame_overruns=ex.frame_overruns, skipped_releases=ex.skipped,
                 **self.security.housekeeping()), obt)
+            sent += 1
         if self.recognizer is not None and self.recognizer.measurement_count > 0 and obt >= self._estimate_next:
             self._estimate_next = obt + self.cfg.housekeeping_period_s
             gt, gd, mse = self.recognizer.best_grid()
@@ -522,6 +724,8 @@ class FlightSoftware:
                 grid_mse_rad2=mse, continuous_ca_obt_s=ct, continuous_ca_distance_km=cd,
                 continuous_sigma_time_s=float(np.sqrt(cov[0, 0])), continuous_sigma_distance_km=float(np.sqrt(cov[1, 1]))),
                 obt)
+            sent += 1
+        return sent
 
 
 def _col_row(blob: object) -> tuple[float, float] | None:

@@ -148,6 +148,11 @@ class TrackingLoop:
         self._rejected_run = 0  # consecutive measurements ignored by the gate
 
     @property
+    def last_measurement_obt_s(self) -> float | None:
+        """OBT the last measurement taken by the loop refers to (its exposure, as given), or None."""
+        return self._meas[-1][1] if self._meas else None
+
+    @property
     def correction_rotvec(self) -> NDArray[np.float64]:
         """Current correction applied to the predicted LOS, inertial rotation vector, rad."""
         return self._c.copy()

@@ -412,6 +412,8 @@ FAULT_RULES: dict[str, tuple[bool, str | None]] = {
     "plume_brightening": (False, "optional"),
     "clock_jump": (False, "required"),
     "link_outage": (False, None),
+    "cpu_overload": (False, "required"),
+    "imaging_latency": (False, "required"),
 }
 """What each fault kind takes; anything else given is refused (it would be ignored in flight)."""
 INSTANTANEOUS_FAULTS = ("clock_jump",)  # acts at start_s: its window may be empty
@@ -431,6 +433,8 @@ class FaultConfig(Config):
         "plume_brightening",
         "clock_jump",
         "link_outage",
+        "cpu_overload",
+        "imaging_latency",
     ]
     start_s: float = Field(description="true start time, s after the epoch")
     end_s: float = Field(description="true end time, s after the epoch")
@@ -438,7 +442,9 @@ class FaultConfig(Config):
     magnitude: float | None = Field(
         None,
         description="size of the fault in the unit of its kind: gyro_bias_step, deg/s added on every axis; "
-        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s",
+        "plume_brightening, brightness factor (default 2); clock_jump, OBT step in s; cpu_overload, factor (>= 1) "
+        "by which the on-board processor runs slower; imaging_latency, s added between a frame's exposure and its "
+        "arrival at the processor",
     )
 
     @field_validator("end_s")
@@ -465,19 +471,34 @@ class FaultConfig(Config):
             out.append(f"magnitude: a {self.kind} fault takes no magnitude")
         if self.kind == "plume_brightening" and self.magnitude is not None and self.magnitude <= 0:
             out.append(f"magnitude: a brightness factor must be > 0, got {self.magnitude:g}")
+        if self.kind == "cpu_overload" and self.magnitude is not None and self.magnitude < 1:
+            out.append(f"magnitude: a processor slow-down factor must be >= 1, got {self.magnitude:g}")
+        if self.kind == "imaging_latency" and self.magnitude is not None and self.magnitude < 0:
+            out.append(f"magnitude: an imaging delay must be >= 0 s, got {self.magnitude:g}")
         if self.end_s == self.start_s and self.kind not in INSTANTANEOUS_FAULTS:
             out.append(f"end_s: the window {self.start_s:g}..{self.end_s:g} s is empty: the fault would never act")
         return out
+
+
+MAX_HISTORY_REPORTS = 100_000  # a ten-day approach at one report a minute is 14,400
 
 
 class ApproachHistoryConfig(Config):
     """Time reports the spacecraft sent during the approach before the run (ground's correlation history)."""
 
     duration_s: float = Field(
-        0.0, ge=0, description="length of the approach before the run start covered by time reports, s (0: none; "
-        "the paper's approach is about ten days, 864000 s)"
+        0.0, ge=0, le=31_557_600.0, description="length of the approach before the run start covered by time reports, "
+        "s (0: none; the paper's approach is about ten days, 864000 s; at most a year)"
     )
     report_period_s: float = Field(600.0, gt=0, description="time between two time reports of the history, true s")
+
+    @model_validator(mode="after")
+    def _reports_held(self) -> ApproachHistoryConfig:
+        n = self.duration_s / self.report_period_s
+        if n > MAX_HISTORY_REPORTS:
+            raise ValueError(f"report_period_s: {n:.3g} time reports over {self.duration_s:g} s; at most "
+                             f"{MAX_HISTORY_REPORTS} (ground fits the last few hundred: a longer period loses nothing)")
+        return self
 
 
 class CentroidModelConfig(Config):

@@ -182,10 +182,15 @@ class Universe:
                 f"expected {self.dynamics.n_wheels}"
             )
         self.link.downlink.send(self.t_s, reply.downlink, outage=bool(self.faults.active("link_outage", self.t_s)))
-        self.torque_nm = np.asarray(reply.wheel_torque_nm, dtype=float)
+        previous_nm, self.torque_nm = self.torque_nm, np.asarray(reply.wheel_torque_nm, dtype=float)
         stuck = frozenset(f.wheel for f in self.faults.active("wheel_stuck", self.t_s) if f.wheel is not None)
         failed = frozenset(f.wheel for f in self.faults.active("wheel_failed", self.t_s) if f.wheel is not None)
-        self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s, stuck, failed)
+        # the wheels keep the previous torques until the control task's modelled finish, then take the new ones
+        delay = min(reply.actuation_delay_s, self.dt_s)
+        if delay > 0:
+            self.state = self.dynamics.step(self.state, previous_nm, delay, stuck, failed)
+        if delay < self.dt_s:
+            self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s - delay, stuck, failed)
         self.step += 1
         self.t_s = self.cfg.start_s + self.step * self.dt_s
         if reply.clock_adjust_s:  # the OBSW commanded its oscillator to step, from this period on
@@ -213,7 +218,11 @@ class Universe:
         meta, blob = (None, b"")
         if frame_requested:
             meta, blob = self._frame(exposure_s or self.cfg.camera.exposure_s)
-        return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta), blob
+        # the processor's speed and the camera interface's delay, as the OBSW node's processor model reads them
+        slowdown = float(np.prod([f.magnitude or 1.0 for f in self.faults.active("cpu_overload", self.t_s)]))
+        delay = sum(f.magnitude or 0.0 for f in self.faults.active("imaging_latency", self.t_s)) if meta else 0.0
+        return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta,
+                           cpu_slowdown=slowdown, imaging_delay_s=delay), blob
 
     def _frame(self, exposure_s: float) -> tuple[FrameMeta | None, bytes]:
         if self.faults.active("frame_lost", self.t_s):
@@ -234,6 +243,17 @@ class Universe:
                          bit_depth=self.cfg.camera.bit_depth, exposure_s=exposure_s, measurement=measurement)
         self.frame_count += 1
         return meta, b"" if pixels is None else pixels.astype("<u2", copy=False).tobytes()
+
+    def frame_at(self, t_s: float, q: tuple[float, ...], omega_rad_s: tuple[float, ...],
+                 exposure_s: float) -> np.ndarray:
+        """The pixels of a frame exposed at true time ``t_s`` in attitude ``q`` turning at ``omega_rad_s``, rendered
+        as the run renders its frames, the noise being the camera streams' next draws; the universe's own time and
+        state are left as they are. A new universe of a run's scenario, asked in frame order for the time and state
+        its truth records at each frame, gives the run's frames again, bit for bit (a replay of a record that keeps
+        frames by reference)."""
+        state = AttitudeState(q=np.asarray(q, dtype=float), omega_rad_s=np.asarray(omega_rad_s, dtype=float),
+                              wheel_speed_rad_s=self.state.wheel_speed_rad_s)
+        return render_at(self, exposure_s, t_s, state)[0]
 
     def _record_truth(self) -> None:
         ts = self.geometry.truth_sample(self.t_s, self.state.q, self._boresight, self.cfg.camera.fov_deg)

@@ -30,7 +30,7 @@ def test_html_embeds_every_plot_and_files_match(full_run) -> None:
     page = path.read_text()
     uris = re.findall(r"src='data:image/png;base64,([A-Za-z0-9+/=]+)'", page)
     files = sorted((run / "report").glob("*.png"))
-    assert len(uris) == len(files) == 8
+    assert len(uris) == len(files) == 9
     embedded = sorted(base64.b64decode(u) for u in uris)
     assert embedded == sorted(f.read_bytes() for f in files)
     assert all(b.startswith(b"\x89PNG\r\n\x1a\n") for b in embedded)

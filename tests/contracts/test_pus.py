@@ -114,7 +114,9 @@ def test_float32_fields_round_to_nearest_float32(x: float) -> None:
 
 
 def test_housekeeping_layout_is_as_documented() -> None:
-    """HK source data is 85 octets at the documented offsets; the whole packet is 6 + 14 + 85 + 2 octets."""
+    """HK source data is 199 octets at the documented offsets (85 of navigation, three u16 TC security counters,
+    then 11 + 11 task times, two latencies and three u32 counters); the whole packet is 6 + 14 + 199 + 2 octets."""
+    last = tuple(1e-4 * (k + 1) for k in range(11))
     hk = Housekeeping(
         mode=Mode.AUTONOMOUS_TRACKING,
         q=(0.5, -0.5, 0.25, 0.625),
@@ -125,14 +127,21 @@ def test_housekeeping_layout_is_as_documented() -> None:
         best_ca_obt_s=1234567.890625,
         best_ca_distance_km=55.5,
         best_mse_rad2=None,
+        task_time_last_s=last,
+        task_time_max_s=tuple(2 * x for x in last),
+        exposure_to_centroid_s=None,
+        centroid_to_torque_s=0.25,
+        task_overruns=7,
+        frame_overruns=3,
+        skipped_releases=65536,
     )
-    assert HK_SIZE == 91
+    assert HK_SIZE == 199
     raw = encode_tm(hk, 0xC1, 1, 100.0, 0)
-    assert len(raw) == 6 + 7 + 7 + 91 + 2 == 113
+    assert len(raw) == 6 + 7 + 7 + 199 + 2 == 221
     d = raw[20:-2]
-    assert len(d) == 91
+    assert len(d) == 199
     assert struct.unpack(">H", d[0:2]) == (1,)
-    assert (d[2], d[3], d[4]) == (4, 0b011, 3)
+    assert (d[2], d[3], d[4]) == (4, 0b10011, 3)
     assert struct.unpack(">4f", d[5:21]) == (0.5, -0.5, 0.25, 0.625)
     assert struct.unpack(">3f", d[21:33]) == tuple(struct.unpack(">f", struct.pack(">f", v))[0] for v in hk.rate_rad_s)
     assert struct.unpack(">4f", d[33:49]) == (10.0, 20.0, 30.0, 0.0)
@@ -140,6 +149,11 @@ def test_housekeeping_layout_is_as_documented() -> None:
     assert struct.unpack(">d", d[69:77]) == (1234567.890625,)
     assert struct.unpack(">f", d[77:81]) == (55.5,)
     assert math.isnan(struct.unpack(">f", d[81:85])[0])
+    assert struct.unpack(">3H", d[85:91]) == (0, 0, 0)
+    assert struct.unpack(">11f", d[91:135]) == pytest.approx(last, rel=1e-7)
+    assert struct.unpack(">11f", d[135:179]) == pytest.approx(tuple(2 * x for x in last), rel=1e-7)
+    assert math.isnan(struct.unpack(">f", d[179:183])[0]) and struct.unpack(">f", d[183:187]) == (0.25,)
+    assert struct.unpack(">3I", d[187:199]) == (7, 3, 65536)
 
 
 def test_navigation_report_is_49_octets() -> None:

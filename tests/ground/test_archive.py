@@ -198,7 +198,7 @@ def test_highest_rate_has_no_loss_and_keeps_up(tmp_path: Path) -> None:
     """2,000 HK packets: all stored, none missing, each value queryable, archived faster than the link can send."""
     n = 2000
     packets = _hk_packets(n, seq0=16000)
-    # Highest telemetry rate: the whole downlink filled with 107-octet HK packets.
+    # Highest telemetry rate: the whole downlink filled with HK packets (215 octets).
     link_rate_pkt_s = LinkConfig().downlink_rate_bps / (8 * len(packets[0]))
     with Archive(tmp_path / "a.sqlite") as arc:
         t0 = time.perf_counter()

@@ -82,7 +82,7 @@ def test_timeline_upload_records_every_row() -> None:
         {"time": "CA-300s", "command": "stop_imaging"},
         {"time": "+5s", "command": "set_mode", "args": {"mode": "STANDBY"}},
     ]}).encode()
-    insert, _ = timeline_request(text, "t.yaml", seg, utc_s=0.0)
+    inserts, _ = timeline_request(text, "t.yaml", seg, utc_s=0.0)
     (up,) = seg.uploads
     ca_obt = seg.correlation.to_obt(seg.nominal_ca_utc_s)
     assert up.utc_s == 0.0
@@ -94,6 +94,7 @@ def test_timeline_upload_records_every_row() -> None:
     assert [r.obt_s for r in up.rows] == pytest.approx([ca_obt - 100.0, ca_obt - 300.0, ca_obt - 295.0])
     assert up.rows[0].refused is None and up.rows[1].refused and up.rows[2].refused
     assert "row 2" in up.rows[1].refused and "earliest allowed OBT" in up.rows[1].refused
+    (insert,) = inserts  # C/A-relative rows only: one mission-subservice insert
     (act,) = insert.activities
     assert up.rows[0].seq_count == pus.request_id_of(act.tc_packet).seq_count
     assert up.rows[1].seq_count is None and up.rows[2].seq_count is None

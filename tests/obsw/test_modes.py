@@ -9,8 +9,10 @@ from hypothesis import settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule
 
+from contracts.task import Task
 from obsw.config import ModesConfig
 from obsw.errors import CommandRejected, IllegalTransition, InternalFault, RejectReason
+from obsw.executive import Activation, EventKind, Executive, TaskSpec
 from obsw.modes import (
     CaEstimate,
     Cause,
@@ -23,6 +25,8 @@ from obsw.modes import (
     WheelSaturation,
     allowed_transitions,
 )
+from obsw.table import ScheduleTable
+from obsw.timing import Work
 
 SAFE, SB, AQ, NT, AT = "SAFE", "STANDBY", "ACQUISITION", "NOMINAL_TRACKING", "AUTONOMOUS_TRACKING"
 
@@ -118,6 +122,47 @@ def test_bad_internal_inputs_are_internal_faults() -> None:
         m.handle("go", 0.0)  # type: ignore[arg-type]
 
 
+def reference_next(mode: str, trigger: object, obt: float, ca: float | None, seen: float | None,
+                   cfg: ModesConfig) -> str | None:
+    """The hand-written reference: the mode after ``trigger`` at ``obt``, or None when the command must be refused."""
+    if isinstance(trigger, SetMode):
+        t = trigger.mode.name
+        return t if (t == mode or t in COMMANDS[mode]) else None
+    if isinstance(trigger, (Fault, WheelSaturation)):
+        return SAFE
+    if isinstance(trigger, TargetDetected):
+        return NT if mode == AQ else mode
+    if isinstance(trigger, Tick):
+        if mode in (AQ, NT, AT) and ca is not None and obt >= ca + cfg.standby_after_ca_s:
+            return SB
+        if mode == NT and ca is not None and obt >= ca - cfg.autonomous_before_ca_s:
+            return AT
+        if mode == NT and seen is not None and obt - seen > cfg.target_lost_timeout_s:
+            return AQ
+    return mode
+
+
+def reference_seen(mode: str, trigger: object, obt: float, seen: float | None) -> float | None:
+    """The reference's last detection time after ``trigger`` left the manager in ``mode``."""
+    if mode not in (NT, AT):
+        return None
+    return obt if isinstance(trigger, TargetDetected) else seen
+
+
+def draw_trigger(kind: str, mode: str, data: st.DataObject) -> object:
+    """A command (onwards, legal or any), a detection or a failure, weighted to reach the tracking modes."""
+    onwards = sorted(COMMANDS[mode] - {SAFE, SB}) or sorted(COMMANDS[mode])
+    if kind == "forward_command":
+        return SetMode(Mode[data.draw(st.sampled_from(onwards))])
+    if kind == "legal_command":
+        return SetMode(Mode[data.draw(st.sampled_from(sorted(COMMANDS[mode])))])
+    if kind == "any_command":
+        return SetMode(data.draw(st.sampled_from(list(Mode))))
+    if kind == "detection":
+        return TargetDetected()
+    return data.draw(st.sampled_from([Fault("injected"), WheelSaturation(0)]))
+
+
 class ModesVersusReference(RuleBasedStateMachine):
     """Any sequence of commands, events, estimates and time (jumps back included) against a hand-written reference."""
 
@@ -130,26 +175,8 @@ class ModesVersusReference(RuleBasedStateMachine):
         self.ca: float | None = None
         self.seen: float | None = None
 
-    def _expect(self, trigger: object) -> str | None:
-        """The reference: the next mode, or None when the command must be refused."""
-        if isinstance(trigger, SetMode):
-            t = trigger.mode.name
-            return t if (t == self.mode or t in COMMANDS[self.mode]) else None
-        if isinstance(trigger, (Fault, WheelSaturation)):
-            return SAFE
-        if isinstance(trigger, TargetDetected):
-            return NT if self.mode == AQ else self.mode
-        if isinstance(trigger, Tick):
-            if self.mode in (AQ, NT, AT) and self.ca is not None and self.obt >= self.ca + self.cfg.standby_after_ca_s:
-                return SB
-            if self.mode == NT and self.ca is not None and self.obt >= self.ca - self.cfg.autonomous_before_ca_s:
-                return AT
-            if self.mode == NT and self.seen is not None and self.obt - self.seen > self.cfg.target_lost_timeout_s:
-                return AQ
-        return self.mode
-
     def _apply(self, trigger: object) -> None:
-        expected = self._expect(trigger)
+        expected = reference_next(self.mode, trigger, self.obt, self.ca, self.seen, self.cfg)
         before = self.mode
         if expected is None:
             with pytest.raises(IllegalTransition):
@@ -165,10 +192,7 @@ class ModesVersusReference(RuleBasedStateMachine):
             assert (event.from_mode.name, event.to_mode.name, event.obt_s) == (before, expected, self.obt)
             assert (before, expected) in GRAPH
         self.mode = expected
-        if self.mode not in (NT, AT):
-            self.seen = None
-        elif isinstance(trigger, TargetDetected):
-            self.seen = self.obt
+        self.seen = reference_seen(self.mode, trigger, self.obt, self.seen)
 
     # one rule with weighted kinds, so that the walk leaves SAFE and reaches the tracking modes often
     @rule(
@@ -183,23 +207,14 @@ class ModesVersusReference(RuleBasedStateMachine):
     )
     def step(self, kind: str, data: st.DataObject) -> None:
         """A command (onwards, legal or any), a detection, a failure, a C/A estimate, or time moving (back too)."""
-        onwards = sorted(COMMANDS[self.mode] - {SAFE, SB}) or sorted(COMMANDS[self.mode])
-        if kind == "forward_command":
-            self._apply(SetMode(Mode[data.draw(st.sampled_from(onwards))]))
-        elif kind == "legal_command":
-            self._apply(SetMode(Mode[data.draw(st.sampled_from(sorted(COMMANDS[self.mode])))]))
-        elif kind == "any_command":
-            self._apply(SetMode(data.draw(st.sampled_from(list(Mode)))))
-        elif kind == "detection":
-            self._apply(TargetDetected())
-        elif kind == "failure":
-            self._apply(data.draw(st.sampled_from([Fault("injected"), WheelSaturation(0)])))
-        elif kind == "ca":
+        if kind == "ca":
             self.ca = self.obt + data.draw(st.floats(-150.0, 150.0))
             self._apply(CaEstimate(self.ca))
-        else:
+        elif kind == "tick":
             self.obt += data.draw(st.floats(0.0, 12.0) | st.floats(0.0, 60.0) | st.floats(-20.0, 0.0))
             self._apply(Tick())
+        else:
+            self._apply(draw_trigger(kind, self.mode, data))
 
     @invariant()
     def mode_is_legal(self) -> None:
@@ -210,3 +225,91 @@ class ModesVersusReference(RuleBasedStateMachine):
 
 ModesVersusReference.TestCase.settings = settings(max_examples=80, stateful_step_count=30, deadline=None)
 test_modes_match_reference = ModesVersusReference.TestCase
+
+
+# --- the mode manager as a task of the executive ----------------------------------------------------------------
+
+PERIOD = 0.1
+QUICK = ModesConfig(autonomous_before_ca_s=0.5, standby_after_ca_s=1.0, target_lost_timeout_s=0.35)
+EVENT_OF = {SetMode: EventKind.TC_ARRIVED, TargetDetected: EventKind.MEASUREMENT, Fault: EventKind.PARAM_CHECK_FAILED,
+            WheelSaturation: EventKind.PARAM_CHECK_FAILED}
+
+
+class ModesInTheExecutive(RuleBasedStateMachine):
+    """Triggers posted at random on-board times, C/A estimates and minor frames whose mode task starts anywhere in
+    the frame (a TIME task of random length before it): every transition is made in the first minor frame whose
+    mode task starts at or after its trigger (an event's time, or the time a guard becomes true), at that start,
+    as the reference says; a refused command changes nothing."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.m = ModeManager(QUICK)
+        self.made: list[tuple[float, str, str]] = []
+        self.time_cost = 0.0
+        specs = {t: TaskSpec(lambda act: Work()) for t in Task}
+        specs[Task.MODES] = TaskSpec(self._modes_task, frozenset(EVENT_OF.values()))
+        self.ex = Executive(ScheduleTable(), PERIOD, specs,
+                            lambda task, work: self.time_cost if task == Task.TIME else 0.0)
+        self.frame = 0
+        self.pending: list[tuple[float, int, object]] = []  # the reference's queue: (time, order posted, trigger)
+        self.posted = 0
+        self.mode, self.ca, self.seen = SB, None, None
+
+    def _modes_task(self, act: Activation) -> Work:
+        for ev in act.events:
+            try:
+                e = self.m.handle(ev.payload, act.now_s)  # type: ignore[arg-type]
+            except IllegalTransition:
+                continue
+            if e is not None:
+                self.made.append((e.obt_s, e.from_mode.name, e.to_mode.name))
+        e = self.m.handle(Tick(), act.now_s)
+        if e is not None:
+            self.made.append((e.obt_s, e.from_mode.name, e.to_mode.name))
+        return Work()
+
+    @property
+    def tick(self) -> float:
+        return 1000.0 + self.frame * PERIOD
+
+    @rule(kind=st.sampled_from(["forward_command"] * 6 + ["detection"] * 6 + ["legal_command", "any_command",
+                                                                            "failure"]),
+          after_s=st.floats(0.0, 0.35), data=st.data())
+    def post(self, kind: str, after_s: float, data: st.DataObject) -> None:
+        """A trigger that exists on board from a random time in this or one of the next minor frames."""
+        trigger = draw_trigger(kind, self.mode, data)
+        self.ex.post(EVENT_OF[type(trigger)], self.tick + after_s, trigger)
+        self.pending.append((self.tick + after_s, self.posted, trigger))
+        self.posted += 1
+
+    @rule(offset_s=st.floats(-1.5, 2.0))
+    def ca_estimate(self, offset_s: float) -> None:
+        """A new C/A estimate, a little before or after now, so the time-driven rows come true within frames."""
+        self.ca = self.tick + offset_s
+        self.m.handle(CaEstimate(self.ca), self.tick)
+
+    @rule(time_cost_s=st.floats(0.0, 0.075))
+    def minor_frame(self, time_cost_s: float) -> None:
+        """One minor frame; the mode task starts after TIME (the tasks between cost nothing) before its deadline."""
+        self.time_cost = time_cost_s
+        start = self.tick + time_cost_s
+        made_before = len(self.made)
+        self.ex.minor_frame(self.tick)
+        expected = []
+        due = sorted(p for p in self.pending if p[0] <= start)
+        self.pending = [p for p in self.pending if p[0] > start]
+        for _, _, trigger in [*due, (start, -1, Tick())]:
+            after = reference_next(self.mode, trigger, start, self.ca, self.seen, QUICK)
+            if after is None:
+                continue
+            if after != self.mode:
+                expected.append((start, self.mode, after))
+            self.mode = after
+            self.seen = reference_seen(after, trigger, start, self.seen)
+        assert self.made[made_before:] == expected
+        assert self.m.mode.name == self.mode
+        self.frame += 1
+
+
+ModesInTheExecutive.TestCase.settings = settings(max_examples=80, stateful_step_count=60, deadline=None)
+test_modes_in_the_executive_match_reference = ModesInTheExecutive.TestCase

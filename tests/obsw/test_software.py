@@ -5,14 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 from scipy.spatial.transform import Rotation
 
 from contracts import pus, sdls
 from contracts.messages import CentroidMeasurement, FrameMeta, SensorData, StepRequest
+from contracts.task import Task
 from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
 from obsw.errors import RejectReason
+from obsw.executive import EventKind
+from obsw.imaging import predict_frame
 from obsw.software import FlightSoftware
 from obsw.tracking import TrackingLoop
 from obsw.trajectory import NominalTrajectory
@@ -115,7 +120,8 @@ def test_illegal_mode_command_is_refused_with_a_completion_failure_and_an_event(
 
 def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
     """A SetMode(ACQUISITION) scheduled at OBT0+1.55 s executes at the first period at or after its tag (not
-    before), reports its completion and the mode change stamped with that OBT, and starts imaging."""
+    before), reports its completion and the mode change stamped with the OBT the schedule task ran at in that
+    period, and starts imaging."""
     fsw = _fsw()
     tag = OBT0 + 1.55
     inner = pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 11)
@@ -136,7 +142,8 @@ def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
             header, ev = changes[0]
             assert (ev.from_mode, ev.to_mode) == (pus.Mode.STANDBY, pus.Mode.ACQUISITION)
             assert ev.cause.startswith("COMMANDED")
-            assert abs(header.obt_s - obt) < 2**-16
+            released = next(r for r in fsw.last_frame.runs if r.task == Task.SCHEDULE)
+            assert abs(header.obt_s - released.start_s) < 2**-16 and obt <= released.start_s < obt + DT
             done = _of(tm, pus.Verification)
             assert [(v.stage, v.success, v.request_id.seq_count) for v in done] == [
                 (stage, True, 11) for stage in (pus.Stage.ACCEPTANCE, pus.Stage.START, pus.Stage.COMPLETION)]
@@ -185,16 +192,19 @@ def _two_bodies_frame(did_col_row: tuple[int, int], dim_col_row: tuple[int, int]
 
 
 def test_frame_line_of_sight_uses_the_attitude_at_exposure() -> None:
-    """A frame exposed one period before it is processed is turned into inertial with the attitude of its
-    exposure: the reported LOS is R(q_exposure) times the pinhole ray of Dimorphos's centroid."""
+    """A frame processed periods after its exposure (readout, FPGA stages, software) is turned into inertial with
+    the attitude of its exposure: the reported LOS is R(q_exposure) times the pinhole ray of Dimorphos's centroid."""
     fsw = _fsw()
     q_exp = Rotation.from_rotvec([0.2, 0.1, -0.4])
     q_now = q_exp * Rotation.from_rotvec([0.0, 0.02, 0.0])  # 1.1 deg later
     fsw.step(_request(0, OBT0, q=tuple(q_exp.as_quat())), None)
     frame = _two_bodies_frame((300, 240), (330, 220))
     meta = FrameMeta(frame_id=0, obt_s=OBT0, width=1024, height=1024, bit_depth=12, exposure_s=0.01)
-    reply = fsw.step(_request(1, OBT0 + DT, q=tuple(q_now.as_quat()), frame=meta), frame)
-    nav = _of(_tm(reply.downlink), pus.NavigationReport)
+    nav = _of(_tm(fsw.step(_request(1, OBT0 + DT, q=tuple(q_now.as_quat()), frame=meta), frame).downlink),
+              pus.NavigationReport)
+    for k in range(2, 6):
+        nav += _of(_tm(fsw.step(_request(k, OBT0 + k * DT, q=tuple(q_now.as_quat())), None).downlink),
+                   pus.NavigationReport)
     assert len(nav) == 1 and nav[0].dimorphos_col_row == pytest.approx((331.5, 221.5))
     f_px = 256.0 / np.tan(np.radians(ObswConfig().camera.fov_deg / 2))
     ray = np.array([331.5 - 255.5, 221.5 - 255.5, f_px])
@@ -211,9 +221,10 @@ def test_a_centroid_measurement_takes_the_place_of_the_frame() -> None:
     m = CentroidMeasurement(dimorphos_col_row=(663.5, 443.5), dimorphos_area_px=40.0, didymos_col_row=(600.5, 480.5),
                             didymos_area_px=400.0)
     meta = FrameMeta(frame_id=0, obt_s=OBT0, width=1024, height=1024, bit_depth=12, exposure_s=0.01, measurement=m)
-    reply = fsw.step(_request(1, OBT0 + DT, q=tuple((q_exp * Rotation.from_rotvec([0, 0.02, 0])).as_quat()),
-                              frame=meta), None)
-    nav = _of(_tm(reply.downlink), pus.NavigationReport)
+    q_later = tuple((q_exp * Rotation.from_rotvec([0, 0.02, 0])).as_quat())
+    nav = _of(_tm(fsw.step(_request(1, OBT0 + DT, q=q_later, frame=meta), None).downlink), pus.NavigationReport)
+    for k in range(2, 6):  # the measurement takes the frame's modelled readout and processing time, as a frame would
+        nav += _of(_tm(fsw.step(_request(k, OBT0 + k * DT, q=q_later), None).downlink), pus.NavigationReport)
     assert len(nav) == 1 and nav[0].dimorphos_col_row == pytest.approx((331.5, 221.5))
     assert nav[0].didymos_col_row == pytest.approx((300.0, 240.0)) and nav[0].dimorphos_area_px == 10
     f_px = 512.0 / np.tan(np.radians(ObswConfig().camera.fov_deg / 2))
@@ -342,3 +353,141 @@ def test_clock_jump_is_reported_once_with_its_size(jump_s: float) -> None:
         obt += DT * (1 + 20e-6)
     assert len(events) == 1
     assert events[0].step_s == pytest.approx(jump_s, abs=1e-5)
+
+
+# --- the executive's timing in the flight software ------------------------------------------------------------
+
+# C/A 60 s on: Didymos 19 and Dimorphos 4 binned px across, the sizes of _two_bodies_frame's squares
+TRAJECTORY = pus.UploadNominalTrajectory(
+    ca_obt_s=OBT0 + 60.0, ca_distance_km=55.0, speed_km_s=7.0, approach_direction=(1.0, 0.0, 0.0),
+    ca_direction=(0.0, 1.0, 0.0), sigma_ca_time_s=10.0, sigma_ca_distance_km=5.0)
+# a frame's modelled latency with the default timing: half the 10 ms exposure, 1024 x 1024 x 12 bit over 80 Mbit/s,
+# 512 x 512 binned pixels through binarisation (20 ns) and labelling (40 ns)
+FRAME_LATENCY_S = 0.005 + 1024 * 1024 * 12 / 80e6 + 512 * 512 * 60e-9
+
+
+def _imaging_fsw(cfg: ObswConfig | None = None) -> tuple[FlightSoftware, object]:
+    """A flight software with the nominal trajectory, in ACQUISITION, imaging every 0.2 s: its first reply."""
+    fsw = FlightSoftware(cfg or ObswConfig(), KEYS)
+    tcs = (pus.encode_tc(TRAJECTORY, APID, 1), pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 2),
+           pus.encode_tc(pus.StartImaging(period_s=0.2), APID, 3))
+    return fsw, fsw.step(_request(0, OBT0, tcs), None)
+
+
+def _fly(fsw: FlightSoftware, reply, slowdowns: list[float], delays: list[float]) -> list[tuple]:
+    """Step on with a two-body frame exposed at each tick after a frame request, Dimorphos where the trajectory
+    puts it; (reply, frame report, frame meta, request) of each step."""
+    assert fsw.trajectory is not None
+    # the camera held on the trajectory's line of sight at the middle of the run, +X body in the inertial XY plane
+    z = fsw.trajectory.los_inertial(OBT0 + 0.5 * len(slowdowns) * DT)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    q = tuple(float(v) for v in Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat())
+    place = predict_frame(np.asarray(q), fsw.cfg.targets, fsw.camera, fsw.cfg.imaging, fsw.trajectory,
+                          OBT0 + DT).dimorphos_col_row
+    assert place is not None
+    c, r = round(place[0] - 1.5), round(place[1] - 1.5)
+    pixels = _two_bodies_frame((c - 30, r + 10), (c, r))
+    out, frame_id = [], 0
+    for k in range(1, len(slowdowns)):
+        obt = OBT0 + k * DT
+        meta = None
+        if reply.frame_request is not None:
+            meta = FrameMeta(frame_id=frame_id, obt_s=obt, width=1024, height=1024, bit_depth=12, exposure_s=0.01)
+            frame_id += 1
+        req = _request(k, obt, q=q, frame=meta).model_copy(update={
+            "cpu_slowdown": slowdowns[k], "imaging_delay_s": delays[k] if meta is not None else 0.0})
+        reply = fsw.step(req, pixels if meta is not None else None)
+        out.append((reply, fsw.last_frame, meta, req))
+    return out
+
+
+@settings(max_examples=12, deadline=None)
+@given(slowdowns=st.lists(st.floats(1.0, 4.0), min_size=30, max_size=30),
+       delays=st.lists(st.floats(0.0, 0.6), min_size=30, max_size=30))
+def test_a_measurement_is_used_only_after_its_latency_and_carries_its_exposure_time(slowdowns, delays) -> None:
+    """Whatever the processor's speed and the interface's delay, a line of sight reaches a task no earlier than its
+    exposure plus readout, FPGA stages and the delay; the recognition and the tracking loop get the exposure time."""
+    fsw, reply = _imaging_fsw()
+    steps = _fly(fsw, reply, slowdowns, delays)
+    metas = {m.frame_id: (m, req.imaging_delay_s) for _, _, m, req in steps if m is not None}
+    recognised, tracked = [], []
+    for _, report, _, _ in steps:
+        for run in report.runs:
+            for ev in run.events:
+                if ev.kind != EventKind.MEASUREMENT:
+                    continue
+                meta, delay = metas[ev.payload.frame_id]
+                assert ev.payload.exposure_obt_s == meta.obt_s
+                assert run.start_s >= ev.time_s >= meta.obt_s + FRAME_LATENCY_S + delay - 1e-9
+                if run.task == Task.RECOGNITION:
+                    recognised.append(meta.obt_s)
+                if run.task == Task.CONTROL:
+                    tracked.append(meta.obt_s)
+    assert recognised and fsw.recognizer.measurement_times_obt_s == tuple(recognised)
+    assert fsw.mode_name == "NOMINAL_TRACKING" and fsw.tracking.last_measurement_obt_s == tracked[-1]
+
+
+@settings(max_examples=20, deadline=None)
+@given(tag_after_s=st.floats(1.02, 2.5), time_task_s=st.floats(0.0, 0.01),  # the margin is 1 s
+       slowdowns=st.lists(st.floats(1.0, 30.0), min_size=40, max_size=40))
+def test_a_time_tagged_command_is_released_in_the_first_minor_frame_at_or_after_its_tag(
+        tag_after_s, time_task_s, slowdowns) -> None:
+    """With the schedule task starting anywhere in its minor frame (a slow TIME task before it, a slowed processor),
+    a scheduled command executes in the first minor frame whose schedule release starts at or after its tag and
+    before its deadline (else the release is skipped), never earlier."""
+    fsw = FlightSoftware(ObswConfig(timing={"time_s": time_task_s}), KEYS)
+    tag = OBT0 + tag_after_s
+    inner = pus.encode_tc(pus.Ping(), APID, 11)
+    insert = pus.InsertActivities(activities=(pus.ScheduledActivity(release_obt_s=tag, tc_packet=inner),))
+    fsw.step(_request(0, OBT0, (pus.encode_tc(insert, APID, 10),)), None)
+    tag = pus.decode_tc(pus.encode_tc(insert, APID, 10))[1].activities[0].release_obt_s  # as carried: on the CUC grid
+    released, expected = [], None
+    for k in range(1, len(slowdowns)):
+        reply = fsw.step(_request(k, OBT0 + k * DT).model_copy(update={"cpu_slowdown": slowdowns[k]}), None)
+        sched = next(r for r in fsw.last_frame.runs if r.task == Task.SCHEDULE)
+        if expected is None and sched.start_s >= tag and sched.start_s < sched.deadline_s:
+            expected = k
+        if _of(_tm(reply.downlink), pus.PingReply):
+            released.append((k, sched.start_s))
+    if expected is None:  # every release after the tag was skipped under the overload: nothing may run early
+        assert released == []
+    else:
+        assert [k for k, _ in released] == [expected]
+        assert released[0][1] >= tag
+
+
+@settings(max_examples=8, deadline=None)
+@given(st.lists(st.floats(1.0, 150.0), min_size=31, max_size=31))
+def test_overloads_are_counted_in_housekeeping_raised_once_per_run_and_never_stop_the_torques(slowdowns) -> None:
+    """Under random slow-downs the control runs and the reply carries torques every period; housekeeping counts
+    every task overrun, minor frame overrun and skipped release before it, and an overrun event opens each run of
+    overruns of a task or of minor frames."""
+    fsw, reply = _imaging_fsw()
+    steps = _fly(fsw, reply, slowdowns, [0.0] * len(slowdowns))
+    task_overruns = frame_overruns = skipped = 0
+    was = {t: False for t in Task}
+    frame_was = False
+    task_events = frame_events = 0
+    for reply, report, _, _ in steps:
+        assert len(reply.wheel_torque_nm) == 3 and np.all(np.isfinite(reply.wheel_torque_nm))
+        assert [r.ran for r in report.runs if r.task == Task.CONTROL] == [True]
+        tm = _tm(reply.downlink)
+        for run in report.runs:
+            if run.task == Task.TELEMETRY:
+                for hk in _of(tm, pus.Housekeeping):
+                    assert (hk.task_overruns, hk.frame_overruns, hk.skipped_releases) == (
+                        task_overruns, frame_overruns, skipped)
+            task_overruns += run.ran and run.finish_s > run.deadline_s
+            skipped += run.skipped
+            if run.ran:
+                task_events += run.finish_s > run.deadline_s and not was[run.task]
+                was[run.task] = run.finish_s > run.deadline_s
+        late = report.busy_until_s > report.tick_s + DT
+        frame_overruns += late
+        frame_events += late and not frame_was
+        frame_was = late
+    events = [r for reply, *_ in steps for _, r in _tm(reply.downlink)]
+    assert sum(isinstance(e, pus.TaskOverrunEvent) for e in events) == task_events
+    assert sum(isinstance(e, pus.FrameOverrunEvent) for e in events) == frame_events
+    assert fsw.executive.task_overruns == task_overruns and fsw.executive.frame_overruns == frame_overruns

@@ -98,6 +98,7 @@ ALL_KINDS = [
     fault("frame_lost"), fault("frame_blank"), fault("frame_saturated"), fault("star_tracker_outage"),
     fault("gyro_bias_step", magnitude=0.2), fault("wheel_stuck", wheel=0), fault("wheel_failed", wheel=1),
     fault("plume_brightening", magnitude=3.0), fault("clock_jump", magnitude=2.5), fault("link_outage"),
+    fault("cpu_overload", magnitude=4.0), fault("imaging_latency", magnitude=0.3),
 ]
 
 
@@ -260,6 +261,35 @@ def test_link_outage_loses_what_is_radiated_during_it_both_ways() -> None:
     # ground radiates one telecommand per ground step, at t = 100, 101 and 102 s: the one at 102 s is inside
     assert sent_at == pytest.approx([100.0, 101.0])
     assert run.universe.link.downlink.lost == len(IN_WINDOW) and run.universe.link.uplink.lost == 1
+
+
+def test_cpu_overload_slows_the_processor_by_its_factor_in_its_window_only() -> None:
+    """Each request reads the product of the slow-down factors whose window holds its step, 1 elsewhere."""
+    second = FaultConfig(kind="cpu_overload", start_s=101.55, end_s=102.55, magnitude=2.5)
+    run = Run(scenario([fault("cpu_overload", magnitude=4.0), second]))
+    for k, req in enumerate(run.requests):
+        t = START_S + k * DT_S
+        expected = (4.0 if k in IN_WINDOW else 1.0) * (2.5 if 101.55 <= t < 102.55 else 1.0)
+        assert req.cpu_slowdown == pytest.approx(expected), k
+
+
+def test_imaging_latency_delays_the_frames_exposed_in_its_window_only() -> None:
+    """A frame exposed inside the window reaches the processor the magnitude later; other frames, and periods
+    without a frame, read no delay."""
+    asked = frozenset({10, 11, 15, 20, 21})
+    run = Run(scenario([fault("imaging_latency", magnitude=0.3)]), frames_at=asked)
+    for k, req in enumerate(run.requests):
+        assert req.imaging_delay_s == (0.3 if k in asked & IN_WINDOW else 0.0), k
+
+
+@pytest.mark.parametrize(("kind", "magnitude", "problem"), [
+    ("cpu_overload", None, "needs its magnitude"), ("cpu_overload", 0.5, "must be >= 1"),
+    ("imaging_latency", None, "needs its magnitude"), ("imaging_latency", -0.1, "must be >= 0 s"),
+])
+def test_timing_faults_need_a_meaningful_magnitude(kind: str, magnitude: float | None, problem: str) -> None:
+    """A slow-down factor below 1 or a negative delay, or none, is refused at load naming the fault's field."""
+    with pytest.raises(ValueError, match=rf"faults\[0\]\.magnitude: .*{problem}"):
+        UniverseConfig(faults=[FaultConfig(kind=kind, start_s=0.0, end_s=1.0, magnitude=magnitude)])
 
 
 def test_a_window_between_two_steps_is_still_logged() -> None:
