@@ -609,6 +609,23 @@ class RekeySecurityAssociation(Telecommand, service=MISSION_SERVICE, subtype=9):
         "the new 256-bit key, wrapped", min_length=WRAPPED_KEY_LEN, max_length=WRAPPED_KEY_LEN)
 
 
+class BadPixel(Record):
+    """One pixel of the camera's bad-pixel map, at full resolution."""
+
+    col: U16 = field("column", "px")
+    row: U16 = field("row", "px")
+
+
+class LoadBadPixelMap(Telecommand, service=MISSION_SERVICE, subtype=10):
+    """Replace the on-board map of the camera's bad pixels with ground's calibration (hot and warm pixels of dark
+    frames, dead pixels and columns of flat fields): before binning, the imaging chain replaces each listed pixel,
+    and every pixel of each listed column, by the mean of its nearest good neighbours in its row. Refused when a
+    pixel or a column is outside the camera's frame; an empty map clears it."""
+
+    columns: tuple[U16, ...] = field("dead columns", default=(), max_length=MAX_LIST)
+    pixels: tuple[BadPixel, ...] = field("bad pixels (column, row)", default=(), max_length=MAX_LIST)
+
+
 class NavigationReport(Report, service=MISSION_SERVICE, subtype=130):
     """What the imaging chain made of one frame: centroids (binned px), area, measured line of sight; absent values
     are 0 with their flag cleared."""

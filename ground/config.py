@@ -101,6 +101,17 @@ class GroundConfig(Config):
         description="ground's knowledge of the link (light time for upload margins and time reports); defaults to "
         "the true link, universe.link",
     )
+    upload_bad_pixel_map: bool = Field(
+        True,
+        description="upload the camera's bad-pixel map (pus.LoadBadPixelMap) with the nominal trajectory, from ground's "
+        "calibration: the pixels of a dark frame at the planned exposure more than bad_pixel_k_sigma above its median "
+        "(hot and warm pixels), and the dead pixels and columns of the sensor (found in flat fields); "
+        "scenario/compose.py",
+    )
+    bad_pixel_k_sigma: float = Field(
+        5.0, gt=0, description="a dark-frame pixel this many robust sigmas above the frame's median is bad, sigma "
+        "(five sigma: about one false pixel per 3.5 million of Gaussian read noise)"
+    )
     timeline_file: str | None = Field(
         None, description="command timeline (YAML or CSV) uploaded after the nominal trajectory; a relative path is "
         "taken from the scenario file's folder"

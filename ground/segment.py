@@ -78,12 +78,14 @@ class GroundSegment:
     """Ground's logic for one run."""
 
     def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None,
-                 keys: sdls.KeyRing | None = None) -> None:
+                 keys: sdls.KeyRing | None = None, *, bad_pixel_map: pus.LoadBadPixelMap | None = None) -> None:
         """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags;
         ``keys``: the security associations that authenticate its TCs (none: TCs go out unsecured, and the
-        spacecraft refuses them)."""
+        spacecraft refuses them); ``bad_pixel_map``: the camera's bad-pixel map from ground's calibration, uploaded
+        with the nominal trajectory (none: not uploaded)."""
         self.cfg = cfg
         self.belief = belief
+        self.bad_pixel_map = bad_pixel_map
         self.epoch_utc = epoch_utc
         self.nominal_ca_utc_s, self.nominal_ca_km = belief.ca_utc_s, belief.ca_distance_km
         self.correlation = Correlation.exact(self.cfg.a_priori_obt_offset_s, 0.0)
@@ -158,6 +160,10 @@ class GroundSegment:
                        f"{self.nominal_ca_km:.2f} km")
             uplink.append(self._tc(tc))
             uplink.append(self._tc(pus.SetTimeReportRate(rate_exponent=self.cfg.time_report_rate_exponent)))
+            if self.bad_pixel_map is not None:
+                m = self.bad_pixel_map
+                log.append(f"upload bad-pixel map: {len(m.pixels)} pixel(s), {len(m.columns)} column(s)")
+                uplink.append(self._tc(m))
             if self.timeline is not None and self.timeline.entries:
                 inserts = self.timeline_upload(utc_s, tc, log)
                 uplink += [self._tc(insert) for insert in inserts]

@@ -153,6 +153,13 @@ class ImagingConfig(Config):
         "planetary cameras (MER/MSL), which keeps the shot-noise-limited faint signal; "
         "'shift' = v >> (bit_depth - 8), a plain linear truncation",
     )
+    otsu_threshold: bool = Field(
+        False,
+        description="threshold at max(Otsu, noise floor) instead of the noise floor alone: Otsu's split cuts the "
+        "diffuse plume off the bodies when they fill the frame, but with a few pixels of bodies it lands between "
+        "the background and Didymos and loses a faint Dimorphos (the ejecta merged with a body are trimmed off by "
+        "identification instead)",
+    )
     noise_k_sigma: float = Field(
         5.0,
         gt=0,
@@ -165,6 +172,24 @@ class ImagingConfig(Config):
         le=254,
         description="threshold floor is at least this far above the background median, 8-bit DN (3 DN: about ten "
         "times the 0.29 DN quantisation noise, for frames whose noise is below one DN)",
+    )
+    outlier_filter: bool = Field(
+        True, description="replace outliers (hot pixels, cosmic-ray streaks) before binning (obsw/imaging_filtering.py)"
+    )
+    outlier_k_sigma: float = Field(
+        5.0,
+        gt=0,
+        description="noise margin of the outlier filter, in per-pixel noise sigmas (5: about one false candidate "
+        "block in 10^6 of Gaussian noise); a block is examined when its brightest pixel exceeds the mean of the others "
+        "by this much, a pixel replaced when it also exceeds outlier_ratio times its 3x3 median (above background) by "
+        "this much",
+    )
+    outlier_ratio: float = Field(
+        2.0,
+        ge=1,
+        description="a pixel more than this many times brighter (above background) than the median of its 3x3 "
+        "neighbourhood is sharper than the optics can make it: a defect (the point-spread function keeps a lit "
+        "pixel's median neighbour at more than half its level; a limb pixel has half its neighbourhood lit)",
     )
     min_body_area_px: int = Field(
         2,
@@ -181,8 +206,9 @@ class ImagingConfig(Config):
     dimorphos_max_separation_didymos_diameters: float = Field(
         2.0,
         gt=0,
-        description="largest Didymos-Dimorphos centroid distance in apparent Didymos diameters (orbit radius "
-        "1.19 km / diameter 0.78 km = 1.53, plus margin for the lit-extent bias)",
+        description="without a trajectory on board (no predicted geometry): largest Didymos-Dimorphos centroid "
+        "distance in apparent Didymos diameters (orbit radius 1.19 km / diameter 0.78 km = 1.53, plus margin for the "
+        "lit-extent bias); with one, the gate is the predicted orbit radius (obsw/imaging_identification.py)",
     )
     dimorphos_max_area_fraction: float = Field(
         0.3,
@@ -196,36 +222,16 @@ class ImagingConfig(Config):
         0.3,
         ge=0,
         le=1,
-        description="smallest Dimorphos/Didymos peak-brightness ratio in 8-bit DN (same albedo; rejects faint "
-        "stars and the diffuse plume; sqrt compression maps a 10x dimmer peak to 0.32)",
+        description="smallest Dimorphos/Didymos brightness ratio in 8-bit DN above the threshold (same albedo; "
+        "rejects faint stars, the diffuse plume and small clumps of it; sqrt compression maps a 10x dimmer surface to "
+        "0.32): of their peaks without a prediction, and with one, of the light each holds in Dimorphos's expected "
+        "area (obsw/imaging_identification.py, aperture_dn8)",
     )
     dimorphos_max_relative_jump_didymos_diameters: float = Field(
         0.5,
         gt=0,
         description="largest change between frames of the Dimorphos offset from Didymos, in Didymos diameters "
         "(at C/A the 1.19 km baseline turns at up to 7/55 rad/s, 0.13 of the 1.5 diameter separation per s)",
-    )
-    plume_min_area_px: int = Field(
-        50,
-        ge=1,
-        description="blobs of at least this area, px at 512 scale, are tested for being diffuse (plume); smaller "
-        "ones are too few pixels for a brightness distribution",
-    )
-    plume_faint_fraction: float = Field(
-        0.4,
-        gt=0,
-        lt=1,
-        description="a blob is diffuse when more than this fraction of its pixels is below half its 95th-percentile "
-        "level above background (lit bodies, even crescents at 135 deg phase: < 0.3; the rendered plume: > 0.45)",
-    )
-    core_peak_fraction: float = Field(
-        0.65,
-        gt=0,
-        le=1,
-        description="a blob's core is its pixels at or above background + this fraction of its peak above background, "
-        "8-bit sqrt-companded DN (dimensionless; 0.65 is about 0.42 of the linear signal): a lit body keeps most of "
-        "its pixels, the ejecta around Dimorphos few; 0.6 to 0.75 keep every Dimorphos centroid of the five "
-        "closed-loop flybys within 10 px of the truth, 0.5 lets a plume core pass for Dimorphos",
     )
     crescent_min_elongation: float = Field(
         3.0,
@@ -259,6 +265,49 @@ class ImagingConfig(Config):
         description="centroid jitter allowed on top of every continuity gate, px at 512 scale (a few pixels of "
         "binarisation and shape change)",
     )
+    prediction_sigma: float = Field(
+        3.0,
+        gt=0,
+        description="the predicted geometry of a frame spans the trajectory's C/A time and distance +- this many "
+        "one-sigma uncertainties, sigma (the recognition grid's 3-sigma interval, paper)",
+    )
+    blur_margin_px: float = Field(
+        0.5,
+        ge=0,
+        description="the point-spread function widens a body's region above the threshold by about this much beyond "
+        "its disc, px at 512 scale (a one-pixel Gaussian sigma at full resolution is half a binned pixel)",
+    )
+    phase_correction: bool = Field(
+        True,
+        description="move each body's centroid from its lit part to its centre by the phase-angle model of "
+        "obsw/imaging_geometry.py (beyond the paper)",
+    )
+
+
+class TargetKnowledge(Config):
+    """What the flight software knows of Didymos, Dimorphos and the Sun (the truth is ``universe.bodies``)."""
+
+    didymos_diameter_m: float = Field(780.0, gt=0, description="mean diameter of Didymos, m (paper)")
+    dimorphos_diameter_m: float = Field(164.0, gt=0, description="mean diameter of Dimorphos, m (paper)")
+    orbit_radius_m: float = Field(1190.0, gt=0, description="Dimorphos orbit radius, m (Naidu et al. 2020)")
+    max_axis_ratio: float = Field(
+        1.5,
+        ge=1,
+        description="largest ratio of a body's apparent radius to that of its mean-diameter sphere (Dimorphos's "
+        "axes 177 x 174 x 116 m, Daly et al. 2023: 1.3 over the mean; margin for the unseen pre-impact shape)",
+    )
+    sun_direction_inertial: tuple[float, float, float] = Field(
+        (-0.5, 0.5, 0.0),
+        description="direction from the asteroids to the Sun, inertial frame (from the ephemerides; constant over "
+        "the flyby)",
+    )
+
+    @field_validator("sun_direction_inertial")
+    @classmethod
+    def _nonzero(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if sum(c * c for c in v) < 1e-18:
+            raise ValueError("must be a non-zero vector")
+        return v
 
 
 class CameraKnowledge(Config):
@@ -330,6 +379,7 @@ class ObswConfig(Config):
         description="on-board knowledge of the inertia matrix, kg m^2",
     )
     camera: CameraKnowledge = CameraKnowledge()
+    targets: TargetKnowledge = TargetKnowledge()
     wheels: WheelKnowledge = WheelKnowledge()
     control: ControlConfig = ControlConfig()
     modes: ModesConfig = ModesConfig()

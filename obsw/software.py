@@ -50,7 +50,7 @@ from obsw.config import ObswConfig
 from obsw.control import pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
-from obsw.imaging import Detections, los_body, measured_detections, process_frame
+from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
 from obsw.modes import CaEstimate, Cause, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.recognition import TrajectoryRecognizer
@@ -115,6 +115,7 @@ class FlightSoftware:
         self.trajectory: NominalTrajectory | None = None
         self.recognizer: TrajectoryRecognizer | None = None
         self.detections: Detections | None = None
+        self.bad_pixels: BadPixelMap | None = None  # the camera's bad-pixel map, uploaded by ground
         self.imaging = False
         self.frame_period_s = cfg.camera.frame_period_s
         self.exposure_s = cfg.camera.exposure_s
@@ -169,6 +170,7 @@ class FlightSoftware:
             pus.SetTimeReportRate: self._set_time_report_rate,
             pus.AdjustObt: self._adjust_obt,
             pus.RekeySecurityAssociation: self._rekey,
+            pus.LoadBadPixelMap: self._load_bad_pixels,
             pus.RequestTimeReports: self._request_time_reports,
             pus.InsertActivities: self._insert_activities,
             pus.InsertCaRelativeActivities: self._insert_ca_relative,
@@ -467,6 +469,15 @@ class FlightSoftware:
             raise CommandRejected(RejectReason.BAD_ARGUMENT, f"rekey: {exc}") from None
         self._log.append(f"OBT {obt:.2f} s: TC authentication: security association {cmd.spi} loaded")
 
+    def _load_bad_pixels(self, cmd: pus.LoadBadPixelMap, obt: float) -> None:
+        try:
+            bad = BadPixelMap.build(self.camera.resolution_px, [(p.col, p.row) for p in cmd.pixels], cmd.columns)
+        except ValueError as exc:
+            raise CommandRejected(RejectReason.BAD_ARGUMENT, f"bad-pixel map: {exc}") from None
+        self.bad_pixels = bad if len(bad) else None
+        self._log.append(f"OBT {obt:.2f} s: bad-pixel map loaded: {len(cmd.pixels)} pixel(s), "
+                         f"{len(cmd.columns)} column(s)")
+
     def _request_time_reports(self, cmd: pus.RequestTimeReports, obt: float) -> None:
         self._time_report_period = 1.0
         self._time_rate_exponent = 0
@@ -551,7 +562,11 @@ class FlightSoftware:
         """Process a frame (at centroid-level fidelity, take its modelled detections); if Dimorphos is seen, emit its
         measured inertial LOS stamped with the exposure."""
         if frame is not None:
-            det = process_frame(frame, self.cfg.imaging, self.detections, self.camera)
+            # what the frame should show, from the trajectory the camera follows and the attitude at the exposure
+            prediction = predict_frame(self._attitude_at(meta.obt_s), self.cfg.targets, self.camera,
+                                       self.cfg.imaging, self.pointing_trajectory(), meta.obt_s)
+            det = process_frame(frame, self.cfg.imaging, self.detections, self.camera, bad_pixels=self.bad_pixels,
+                                prediction=prediction)
         else:
             assert meta.measurement is not None
             det = measured_detections(meta.measurement, self.cfg.imaging, self.camera)

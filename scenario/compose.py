@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from contracts import pus
 from contracts.sdls import KeyRing
 from contracts.seeding import rng_streams
 from ground.config import FlybyBelief
@@ -16,6 +17,7 @@ from ground.segment import GroundSegment
 from obsw.software import FlightSoftware
 from scenario.model import Scenario
 from timeline.model import Timeline
+from universe.camera import dark_frame, sensor_defects
 from universe.geometry import nominal_ca
 from universe.simulator import Universe
 
@@ -46,6 +48,27 @@ def ground_belief(scenario: Scenario) -> FlybyBelief:
                        ca_time_sigma_s=unc.ca_time_sigma_s, ca_distance_sigma_km=unc.ca_distance_sigma_km)
 
 
+def ground_bad_pixel_map(scenario: Scenario) -> pus.LoadBadPixelMap:
+    """Ground's bad-pixel map of the camera, from its calibration: the pixels of the run's dark frame (the universe's
+    ``dark_frame`` at the planned exposure, drawn from the same seeded stream) more than ``bad_pixel_k_sigma`` robust
+    sigmas above its median, the hot and warm pixels that matter at that exposure; and the sensor's dead pixels and
+    columns, which read the bias in a dark frame and are known from flat fields (its fixed maps)."""
+    cam = scenario.universe.camera
+    dark = dark_frame(cam, scenario.obsw.camera.exposure_s, rng_streams(scenario.seed)["dark_frame"])
+    median = float(np.median(dark))
+    sigma = 1.4826 * float(np.median(np.abs(dark - median)))
+    bright = np.flatnonzero(dark.reshape(-1) > median + scenario.ground.bad_pixel_k_sigma * max(sigma, 0.5))
+    defects = sensor_defects(cam)
+    flat = np.union1d(bright, defects.dead_idx)
+    rows, cols = np.divmod(flat, cam.resolution_px)
+    columns = {int(c) for c in defects.dead_columns}
+    pixels = tuple(pus.BadPixel(col=int(c), row=int(r)) for c, r in zip(cols, rows, strict=True) if int(c) not in columns)
+    return pus.LoadBadPixelMap(columns=tuple(sorted(columns)), pixels=pixels)
+
+
 def ground_segment(scenario: Scenario, timeline: Timeline | None = None, keys: KeyRing | None = None) -> GroundSegment:
-    """The ground segment with its belief of the flyby, the timeline it uploads and the keys it secures TCs with."""
-    return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline, keys)
+    """The ground segment with its belief of the flyby, the timeline it uploads, the keys it secures TCs with and
+    its calibration of the camera's bad pixels."""
+    bad = ground_bad_pixel_map(scenario) if scenario.ground.upload_bad_pixel_map else None
+    return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline, keys,
+                         bad_pixel_map=bad)

@@ -235,12 +235,11 @@ class CameraConfig(Config):
         50.0, ge=0, description="mean dark current, electrons per second per pixel (CMOS at ~20 C)"
     )
     dark_current_dsnu_e_s: float = Field(
-        0.0,
+        15.0,
         ge=0,
         description="dark signal non-uniformity: one-sigma pixel-to-pixel spread of the dark current, electrons per "
         "second per pixel; each pixel's dark current is fixed, lognormal with mean dark_current_e_s and this spread "
-        "(0: uniform, the default until the on-board imaging is robust to it; CMOS image sensor datasheets quote a "
-        "DSNU of 10-50 % of the mean dark current, configs/scenarios/detector.yaml uses 30 %)",
+        "(0: uniform; CMOS image sensor datasheets quote a DSNU of 10-50 % of the mean dark current: 30 %)",
     )
     body_signal_e_s: float = Field(
         1.5e6,
@@ -284,13 +283,12 @@ class CameraConfig(Config):
         "non-uniformity (fixed per sensor: the same in every frame of every run)",
     )
     warm_pixel_fraction: float = Field(
-        0.0,
+        0.001,
         ge=0,
         le=0.1,
         description="fraction of the pixels that are warm: a fixed excess dark current, growing with the exposure "
-        "(0: none, the default until the on-board imaging is robust to them; CMOS image sensor datasheets allow "
-        "of order 1e-4 to 1e-3 of the pixels outside their dark-current specification and proton damage in space "
-        "adds more, configs/scenarios/detector.yaml uses 1e-3)",
+        "(CMOS image sensor datasheets allow of order 1e-4 to 1e-3 of the pixels outside their dark-current "
+        "specification and proton damage in space adds more: 1e-3)",
     )
     warm_pixel_dark_current_e_s: float = Field(
         2000.0,
@@ -299,26 +297,23 @@ class CameraConfig(Config):
         "40x the default mean dark current, the order of the warm-pixel tail of irradiated CMOS sensors)",
     )
     dead_pixel_count: int = Field(
-        0,
+        100,
         ge=0,
-        description="number of dead pixels, reading the bias only, at fixed seeded positions (count; 0 until the "
-        "on-board imaging is robust to them; CMOS datasheets allow defects of order 1e-4 of the pixels: "
-        "configs/scenarios/detector.yaml uses 100 of 1024x1024)",
+        description="number of dead pixels, reading the bias only, at fixed seeded positions (count; CMOS datasheets "
+        "allow defects of order 1e-4 of the pixels: 100 of 1024x1024)",
     )
     dead_column_count: int = Field(
-        0,
+        1,
         ge=0,
-        description="number of dead columns, reading the bias only, at fixed seeded positions (count; 0 until the "
-        "on-board imaging is robust to them; column defects are the usual readout-chain failure of a CMOS sensor, "
-        "configs/scenarios/detector.yaml uses 1)",
+        description="number of dead columns, reading the bias only, at fixed seeded positions (count; column defects "
+        "are the usual readout-chain failure of a CMOS sensor: one)",
     )
     cosmic_ray_flux_cm2_s: float = Field(
-        0.0,
+        5.0,
         ge=0,
         description="rate of charged particles crossing the sensor, per cm^2 per second over its area "
-        "(resolution_px x pixel_pitch_um squared), from every direction (0: none, the default until the on-board "
-        "imaging is robust to them; galactic cosmic rays in interplanetary space near solar minimum are about "
-        "5 /cm^2/s, the level of configs/scenarios/detector.yaml)",
+        "(resolution_px x pixel_pitch_um squared), from every direction (galactic cosmic rays in interplanetary "
+        "space near solar minimum are about 5 /cm^2/s; 0: none)",
     )
     pixel_pitch_um: float = Field(
         5.5,

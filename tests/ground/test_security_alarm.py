@@ -54,7 +54,8 @@ def test_scheduled_tcs_count_apart_and_are_known_to_ground() -> None:
     seg = compose.ground_segment(sc, tl, sdls.KeyRing.generate())
     seg.step(0.0, (), ())
     radiated = [pus.decode_tc(p) for p in seg.radiated]
-    assert [h.seq_count for h, _ in radiated] == [0, 1, 2]
+    assert [h.seq_count for h, _ in radiated] == [0, 1, 2, 3]  # trajectory, time reports, bad-pixel map, insert
+    assert isinstance(radiated[2][1], pus.LoadBadPixelMap)
     insert = radiated[-1][1]
     assert isinstance(insert, pus.InsertCaRelativeActivities)
     inner = [a.request_id.seq_count for a in insert.activities]

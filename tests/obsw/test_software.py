@@ -17,6 +17,7 @@ from scenario.model import scenario_from_dict
 from obsw.config import ObswConfig, TrackingConfig
 from obsw.errors import RejectReason
 from obsw.executive import EventKind
+from obsw.imaging import predict_frame
 from obsw.software import FlightSoftware
 from obsw.tracking import TrackingLoop
 from obsw.trajectory import NominalTrajectory
@@ -356,8 +357,9 @@ def test_clock_jump_is_reported_once_with_its_size(jump_s: float) -> None:
 
 # --- the executive's timing in the flight software ------------------------------------------------------------
 
+# C/A 60 s on: Didymos 19 and Dimorphos 4 binned px across, the sizes of _two_bodies_frame's squares
 TRAJECTORY = pus.UploadNominalTrajectory(
-    ca_obt_s=OBT0 + 200.0, ca_distance_km=55.0, speed_km_s=7.0, approach_direction=(1.0, 0.0, 0.0),
+    ca_obt_s=OBT0 + 60.0, ca_distance_km=55.0, speed_km_s=7.0, approach_direction=(1.0, 0.0, 0.0),
     ca_direction=(0.0, 1.0, 0.0), sigma_ca_time_s=10.0, sigma_ca_distance_km=5.0)
 # a frame's modelled latency with the default timing: half the 10 ms exposure, 1024 x 1024 x 12 bit over 80 Mbit/s,
 # 512 x 512 binned pixels through binarisation (20 ns) and labelling (40 ns)
@@ -373,9 +375,19 @@ def _imaging_fsw(cfg: ObswConfig | None = None) -> tuple[FlightSoftware, object]
 
 
 def _fly(fsw: FlightSoftware, reply, slowdowns: list[float], delays: list[float]) -> list[tuple]:
-    """Step on with a two-body frame exposed at each tick after a frame request; (reply, frame report, frame meta,
-    request) of each step."""
-    pixels = _two_bodies_frame((300, 240), (330, 220))
+    """Step on with a two-body frame exposed at each tick after a frame request, Dimorphos where the trajectory
+    puts it; (reply, frame report, frame meta, request) of each step."""
+    assert fsw.trajectory is not None
+    # the camera held on the trajectory's line of sight at the middle of the run, +X body in the inertial XY plane
+    z = fsw.trajectory.los_inertial(OBT0 + 0.5 * len(slowdowns) * DT)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    x /= np.linalg.norm(x)
+    q = tuple(float(v) for v in Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])).as_quat())
+    place = predict_frame(np.asarray(q), fsw.cfg.targets, fsw.camera, fsw.cfg.imaging, fsw.trajectory,
+                          OBT0 + DT).dimorphos_col_row
+    assert place is not None
+    c, r = round(place[0] - 1.5), round(place[1] - 1.5)
+    pixels = _two_bodies_frame((c - 30, r + 10), (c, r))
     out, frame_id = [], 0
     for k in range(1, len(slowdowns)):
         obt = OBT0 + k * DT
@@ -383,7 +395,7 @@ def _fly(fsw: FlightSoftware, reply, slowdowns: list[float], delays: list[float]
         if reply.frame_request is not None:
             meta = FrameMeta(frame_id=frame_id, obt_s=obt, width=1024, height=1024, bit_depth=12, exposure_s=0.01)
             frame_id += 1
-        req = _request(k, obt, frame=meta).model_copy(update={
+        req = _request(k, obt, q=q, frame=meta).model_copy(update={
             "cpu_slowdown": slowdowns[k], "imaging_delay_s": delays[k] if meta is not None else 0.0})
         reply = fsw.step(req, pixels if meta is not None else None)
         out.append((reply, fsw.last_frame, meta, req))

@@ -1,7 +1,9 @@
 """Zero latencies reproduce the zero-time flight software: the executive with ``timing.modelled`` false gives the
 telemetry (housekeeping by its zero-time fields), torques, frames, uplink and truth recorded from the flight
 software before the executive (commit a3c702c; recorded again at 30b1117, after the PUS-C and TC authentication
-changes, with the in-process keys fixed by the seed), for the same seed.
+changes, with the in-process keys fixed by the seed; recorded again with the camera's detector on and the imaging
+chain robust to it: telemetry, replies and truth from the zero-time flight software of branch img before it took the
+executive, the uplink's MACs from the in-process keys fixed by the seed), for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -27,11 +29,11 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "2e54ed00698112915440c9f58dccfbd250a16df1558fbd3e8c734214bb47d85b",
-    "replies": "db8646b58d3c047ab3134094707f9b0b1d863ac2782feb5408c9b96058cbc22d",
-    "tc": "0cdd6408d0e9c0ba32da9ef6691b41ea3a5ccf7ec6316c717b474e3b8294e077",
-    "truth": "1afccd584357346e38230f147a6a476303578532b48e56e0a5c90894b785fd14",
-    "n_tm": 119,
+    "tm": "2ebbb94965f4f02f76fa30c13532b03547373548007ab83217a3213e762611b1",
+    "replies": "95624c626b450d562fa7dda9bb008251239422cfb6ef96530322f32ce61151c0",
+    "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
+    "truth": "055f0f19abc90df74e96ee38aa6431a3b100cddba4d63cb8d133514f49a33b3f",
+    "n_tm": 122,
     "n_hk": 30,
     "frames": 40,
 }

@@ -181,7 +181,7 @@ def test_flyby_render_defaults_to_the_run_at_the_frame_period(tmp_path: Path) ->
 
 
 def test_the_detector_scenario_renders_a_valid_frame_at_closest_approach() -> None:
-    """configs/scenarios/detector.yaml (every detector effect on at its realistic level): at C/A the frame has its
+    """configs/scenarios/detector.yaml (a degraded detector, every effect on): at C/A the frame has its
     size and bit depth, Dimorphos lit on the boresight, the dead column at the bias; the scenario is the same
     flyby as the nominal scenario but for the camera."""
     root = Path(__file__).parents[2] / "configs" / "scenarios"

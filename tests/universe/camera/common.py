@@ -14,6 +14,9 @@ SPHERE = ShapeModel(irregularity=0.0)
 IDENTITY = np.array([0.0, 0.0, 0.0, 1.0])
 F_1024 = 512.0 / math.tan(math.radians(2.9) / 2.0)  # closed-form focal length of the default camera, px
 C_1024 = 511.5
+NO_DEFECTS = dict(dark_current_dsnu_e_s=0.0, warm_pixel_fraction=0.0, dead_pixel_count=0, dead_column_count=0,
+                  cosmic_ray_flux_cm2_s=0.0)
+"""The detector's defects off (CameraConfig keywords), for the tests of an ideal camera's optics and noise."""
 
 
 def scene(bodies: tuple[Body, ...] = (), sun=(0.0, 0.0, -1.0), **kw) -> Scene:

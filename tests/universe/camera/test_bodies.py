@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy import ndimage
 from scipy.spatial.transform import Rotation
 
-from tests.universe.camera.common import C_1024, F_1024, SPHERE, lit_pixels, scene
+from tests.universe.camera.common import NO_DEFECTS, C_1024, F_1024, SPHERE, lit_pixels, scene
 from universe.camera import Body, project_inertial, render_frame, scene_electrons
 from universe.camera.bodies import body_box, render_scale
 from universe.config import CameraConfig, PlumeConfig
@@ -99,7 +99,7 @@ def test_body_behind_another_is_hidden_and_in_front_is_seen() -> None:
 def test_rotated_ellipsoid_matches_closed_form_ray_intersection() -> None:
     """An ellipsoid (no bumps) matches the closed-form ray/ellipsoid silhouette and lunar-Lambert shading."""
     cfg = CameraConfig(hot_pixel_count=0, phase_slope_mag_deg=0.0, read_noise_e=0.0, dark_current_e_s=0.0,
-                       body_signal_e_s=1.0e6, psf_sigma_px=0.31)
+                       body_signal_e_s=1.0e6, psf_sigma_px=0.31, **NO_DEFECTS)
     axes = np.array([1.3, 1.0, 0.8])
     radius, rng_m = 390.0, 40_000.0
     q_ast = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_quat()
@@ -139,7 +139,8 @@ def test_rotated_ellipsoid_matches_closed_form_ray_intersection() -> None:
 def test_camera_motion_smears_a_body_by_v_t_over_range() -> None:
     """A camera moving at v across the line of sight stretches a body's image variance by (v T f / range)^2 / 12."""
     cfg = CameraConfig(
-        hot_pixel_count=0, read_noise_e=0.0, dark_current_e_s=0.0, lommel_seeliger_weight=1.0, body_signal_e_s=1e5
+        hot_pixel_count=0, read_noise_e=0.0, dark_current_e_s=0.0, lommel_seeliger_weight=1.0, body_signal_e_s=1e5,
+        **NO_DEFECTS
     )
     rng_m, exposure = 55_000.0, 0.05
     body = Body(np.array([0.0, 0.0, rng_m]), 100.0, SPHERE)
@@ -189,7 +190,8 @@ def test_body_box_holds_the_projection_of_its_bounding_sphere(
 def test_a_streak_too_long_for_the_frame_s_pixels_keeps_the_light_and_the_closed_form_length() -> None:
     """A body smeared 600 px (rendered at 1/4 resolution and resampled): the same total light as unsmeared, the
     image variance along the motion grown by L^2 / 12, across it by less than the 4 px of the coarser pixels."""
-    cfg = CameraConfig(hot_pixel_count=0, read_noise_e=0.0, dark_current_e_s=0.0, lommel_seeliger_weight=1.0)
+    cfg = CameraConfig(hot_pixel_count=0, read_noise_e=0.0, dark_current_e_s=0.0, lommel_seeliger_weight=1.0,
+                       **NO_DEFECTS)
     rng_m, exposure, length_px = 55_000.0, 0.05, 600.0
     speed = length_px * rng_m / (exposure * F_1024)
     assert render_scale(cfg.psf_sigma_px, length_px) == 4

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from tests.universe.camera.common import scene
+from tests.universe.camera.common import NO_DEFECTS, scene
 from universe.camera import CosmicRays, cosmic_rays, deposit, render_frame
 from universe.config import CameraConfig, PlumeConfig
 
@@ -69,7 +69,7 @@ def test_a_streak_deposits_its_whole_charge_along_its_line() -> None:
 def test_cosmic_rays_only_add_charge_where_they_hit() -> None:
     """Drawn from their own generator, cosmic rays leave every other pixel of a frame as it was, and add their charge
     (to within its shot noise) where they hit."""
-    quiet = CameraConfig(read_noise_e=0.0, dark_current_e_s=0.0, hot_pixel_count=0)
+    quiet = CameraConfig(read_noise_e=0.0, dark_current_e_s=0.0, hot_pixel_count=0, **NO_DEFECTS)
     hit = quiet.model_copy(update={"cosmic_ray_flux_cm2_s": 50.0})
     s = scene(exposure_s=1.0, blank=True)
     a = render_frame(s, quiet, PlumeConfig(), np.random.default_rng(3)).astype(float)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pydantic import ValidationError
 
-from tests.universe.camera.common import scene
+from tests.universe.camera.common import NO_DEFECTS, scene
 from universe.camera import Body, hot_pixels, render_frame, sensor_defects
 from universe.config import CameraConfig, PlumeConfig
 from universe.shapes import ShapeModel
@@ -33,12 +33,12 @@ def test_the_maps_are_fixed_by_the_seed() -> None:
 
 def test_counts_and_levels_are_the_configured_ones() -> None:
     """1e-3 of the pixels are warm, each at 20-100 % of the largest excess; 100 dead pixels and 2 dead columns, all
-    distinct; by default none of them and a uniform dark current."""
+    distinct; with the defects off, none of them and a uniform dark current."""
     d = sensor_defects(DEFECTIVE)
     assert d.warm_idx.size == round(1e-3 * 1024 * 1024) == np.unique(d.warm_idx).size
     assert np.all((d.warm_e_s >= 0.2 * 2000.0) & (d.warm_e_s <= 2000.0))
     assert np.unique(d.dead_idx).size == 100 and np.unique(d.dead_columns).size == 2
-    none = sensor_defects(CameraConfig())
+    none = sensor_defects(CameraConfig(**NO_DEFECTS))
     assert none.warm_idx.size == none.dead_idx.size == none.dead_columns.size == 0 and none.dark_e_s is None
 
 
@@ -68,7 +68,7 @@ def test_dead_pixels_and_columns_read_the_bias_only() -> None:
 
 def test_hot_and_warm_pixels_stay_put_from_frame_to_frame() -> None:
     """Two long dark exposures with different noise show their hot and warm pixels at the same places: the map's."""
-    cfg = CameraConfig(warm_pixel_fraction=1e-4, read_noise_e=2.0)
+    cfg = CameraConfig(**{**NO_DEFECTS, "warm_pixel_fraction": 1e-4}, read_noise_e=2.0)
     d = sensor_defects(cfg)
     s = scene(exposure_s=1.0, blank=True)
     found = []
@@ -93,7 +93,7 @@ def test_impossible_defects_are_refused_naming_the_field(update: dict, field: st
 
 def test_warm_pixels_grow_with_the_exposure_hot_pixels_do_not() -> None:
     """A warm pixel's excess is its dark current times the exposure; a hot pixel's is the same in every frame."""
-    cfg = CameraConfig(warm_pixel_fraction=1e-4, read_noise_e=0.0, dark_current_e_s=0.0)
+    cfg = CameraConfig(**{**NO_DEFECTS, "warm_pixel_fraction": 1e-4}, read_noise_e=0.0, dark_current_e_s=0.0)
     d = sensor_defects(cfg)
     excess = []
     for exposure in (0.5, 1.0):

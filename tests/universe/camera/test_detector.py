@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from tests.universe.camera.common import SPHERE, scene
+from tests.universe.camera.common import NO_DEFECTS, SPHERE, scene
 from scenario import compose
 from scenario.model import Scenario
 from universe.camera import NORMAL_QUANTILES, Body, dark_frame, normal_codes, render_frame, scene_electrons
@@ -118,7 +118,7 @@ def test_frame_moments_follow_the_detector_model_pixel_by_pixel(range_m: float) 
     S is the scene's expected electrons per pixel; at 120 km the body fills a small box (dark look-up table elsewhere),
     at 9 km it fills the frame (one full-frame pass).
     """
-    cfg = CameraConfig(hot_pixel_count=0)
+    cfg = CameraConfig(hot_pixel_count=0, **NO_DEFECTS)
     body = Body(np.array([30.0, -20.0, range_m]), 390.0, ShapeModel(seed=6))
     s = scene((body,), sun=(0.4, 0.2, -1.0), star_seed=2)
     expected_e = scene_electrons(s, cfg, PlumeConfig())
@@ -137,7 +137,7 @@ def test_frame_moments_follow_the_detector_model_pixel_by_pixel(range_m: float) 
 def test_dark_frame_statistics_follow_the_dark_current_and_its_non_uniformity() -> None:
     """A 20 s dark frame: mean offset + m T / g, variance (s T / g)^2 + (m T + read^2) / g^2 + 1/12 for a dark current
     of mean m and pixel-to-pixel spread s (no scene, no hot or warm pixels): the spread recovered to 2 %."""
-    cfg = CameraConfig(hot_pixel_count=0, dark_current_dsnu_e_s=15.0)
+    cfg = CameraConfig(hot_pixel_count=0, **{**NO_DEFECTS, "dark_current_dsnu_e_s": 15.0})
     exposure, g, m, s = 20.0, cfg.gain_e_per_dn, cfg.dark_current_e_s, 15.0
     frame = dark_frame(cfg, exposure, np.random.default_rng(4)).astype(float)
     assert frame.mean() == pytest.approx(cfg.dark_offset_dn + m * exposure / g, abs=0.05)

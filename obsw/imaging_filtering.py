@@ -1,0 +1,352 @@
+"""Step 1 of the imaging chain, the FPGA's filtering: defect correction, binning and the 12->8 bit look-up table.
+
+Before the frame is binned, the detector's defects are taken out, as a flight imaging subsystem does:
+
+- **Bad-pixel map.** The pixels and columns ground found bad in its calibration (hot and warm pixels of a dark frame,
+  dead pixels and columns of a flat field) and uploaded (``pus.LoadBadPixelMap``) are each replaced by the mean of
+  the nearest good pixels left and right of it in its row (a dead column by its two neighbouring columns).
+- **Outlier filter.** What the map does not know, new hot pixels and the streaks of cosmic rays, is sharp: charge in
+  one pixel and not in its neighbours, where light from the scene is spread by the optics over several pixels. A
+  pixel ``v`` is an outlier when its 2x2 binning block (f x f at 2048) is dominated by one pixel, the block's
+  brightest exceeding the mean m of the others by ``outlier_k_sigma`` noise sigmas plus (``outlier_ratio`` - 1)
+  times m above the background, and ``v`` itself exceeds ``outlier_ratio`` times the median of its 3x3
+  neighbourhood (itself included, as OpenCV's ``medianBlur``) above the background plus ``outlier_k_sigma`` sigmas.
+  Both tests scale with the local signal, so a lit surface's shot noise does not pass for a defect. An outlier is replaced by that median. A streak one pixel wide
+  leaves at most four of the nine pixels of a neighbourhood lit, so the median is the background's and the streak
+  goes; a lit surface keeps its pixels (a limb pixel has half its neighbourhood lit). All decisions are taken on the
+  frame after the map's correction, and all outliers are replaced at once. The block test is what makes the filter
+  cheap: only the blocks it selects (defects, stars, limbs of bodies) are examined pixel by pixel.
+
+Background and noise come from the binned image after the map's correction: its median, and the per-pixel noise
+sigma f x 1.4826 x its median absolute deviation (the binned pixel is the mean of f^2 pixels; at least 1 DN).
+Binning is the rounded mean of f x f blocks at the raw bit depth (cv2.resize INTER_AREA for 1024 -> 512); the
+corrections enter the block sums, so the frame itself is never copied or changed.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from obsw import imaging_kernels as kernels
+from obsw.config import ImagingConfig
+
+MAD_TO_SIGMA = 1.4826  # one Gaussian sigma per median absolute deviation
+
+
+class FrameError(ValueError):
+    """A frame cannot be processed: wrong shape, type or pixel values for the imaging configuration."""
+
+
+@dataclass(frozen=True, eq=False)
+class BadPixelMap:
+    """The on-board map of bad pixels of a side x side sensor, with each pixel's replacement neighbours.
+
+    ``pixels`` are the flat indices (row * side + column) of every bad pixel, the pixels of dead columns included,
+    sorted; ``left`` and ``right`` the flat index of the nearest good pixel on each side in the same row (-1: none).
+    """
+
+    side: int
+    pixels: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    columns: tuple[int, ...]  # dead columns as uploaded
+
+    @classmethod
+    def build(cls, side: int, pixels_col_row: tuple[tuple[int, int], ...] | list[tuple[int, int]],
+              columns: tuple[int, ...] | list[int] = ()) -> BadPixelMap:
+        """The map of these (column, row) pixels and whole columns; ValueError naming the first one off the sensor."""
+        if side <= 0:
+            raise ValueError(f"side must be positive, got {side}")
+        for c, r in pixels_col_row:
+            if not (0 <= c < side and 0 <= r < side):
+                raise ValueError(f"bad pixel (col {c}, row {r}) is outside the {side}x{side} sensor")
+        for c in columns:
+            if not 0 <= c < side:
+                raise ValueError(f"dead column {c} is outside the {side}x{side} sensor")
+        flat = [np.asarray([r * side + c for c, r in pixels_col_row], dtype=np.int64)]
+        rows = np.arange(side, dtype=np.int64)
+        flat += [rows * side + c for c in columns]
+        every = np.unique(np.concatenate(flat)) if flat else np.zeros(0, dtype=np.int64)
+        left = np.full(every.size, -1, dtype=np.int64)
+        right = np.full(every.size, -1, dtype=np.int64)
+        if every.size:
+            # runs of adjacent bad pixels in one row share their good neighbours: the pixel before the run's first
+            # and after its last, when those are still in the row
+            starts = np.r_[True, np.diff(every) != 1] | (every % side == 0)
+            run = np.cumsum(starts) - 1
+            first = every[starts]
+            ends = np.r_[starts[1:], True]
+            last = every[ends]
+            lo, hi = first - 1, last + 1
+            left = np.where(first % side > 0, lo, -1)[run]
+            right = np.where(last % side < side - 1, hi, -1)[run]
+        for a in (every, left, right):
+            a.setflags(write=False)
+        return cls(side=side, pixels=every, left=left, right=right, columns=tuple(int(c) for c in columns))
+
+    def __len__(self) -> int:
+        return int(self.pixels.size)
+
+    def replacement(self, flat_frame: np.ndarray) -> np.ndarray:
+        """The replacement value (int64) of each bad pixel in a flattened frame: the rounded mean of its good
+        neighbours in the row, the one that exists, or its own value when the whole row is bad."""
+        own = flat_frame[self.pixels].astype(np.int64)
+        lv = flat_frame[np.maximum(self.left, 0)].astype(np.int64)
+        rv = flat_frame[np.maximum(self.right, 0)].astype(np.int64)
+        has_l, has_r = self.left >= 0, self.right >= 0
+        return np.where(has_l & has_r, (lv + rv + 1) // 2, np.where(has_l, lv, np.where(has_r, rv, own)))
+
+
+@dataclass(frozen=True, slots=True)
+class Filtered:
+    """The binned image of a frame after defect correction, with what the filtering found."""
+
+    binned: np.ndarray  # (n, n), raw bit depth
+    hist: np.ndarray  # histogram of the binned values, one bin per raw value
+    background_dn: int  # median of the binned image before the outlier filter, raw DN
+    noise_sigma_dn: float  # per-pixel noise sigma at full resolution used by the outlier filter, raw DN
+    bad_pixels: int  # pixels replaced by the map
+    outliers: np.ndarray  # flat indices (full resolution) of the pixels the outlier filter replaced
+
+
+def check_frame(frame: np.ndarray, side: int, bit_depth: int) -> None:
+    """Raise FrameError unless ``frame`` is a side x side array of unsigned integers of at least ``bit_depth`` bits
+    whose values fit that depth."""
+    if not isinstance(frame, np.ndarray):
+        raise FrameError(f"frame must be a numpy array, got {type(frame).__name__}")
+    if frame.size == 0:
+        raise FrameError(f"frame is empty (shape {frame.shape})")
+    if frame.ndim != 2 or frame.shape[0] != frame.shape[1]:
+        raise FrameError(f"frame must be a square 2-D array, got shape {frame.shape}")
+    if frame.dtype.kind not in "ui":
+        raise FrameError(f"frame must hold integers, got dtype {frame.dtype}")
+    if frame.dtype.itemsize * 8 < bit_depth:
+        raise FrameError(f"frame dtype {frame.dtype} holds {frame.dtype.itemsize * 8}-bit values; the camera's "
+                         f"frames are {bit_depth}-bit (an 8-bit image is not a raw frame)")
+    if frame.shape[0] != side:
+        raise FrameError(f"frame side {frame.shape[0]} px is not the camera's {side} px")
+    vmax = (1 << bit_depth) - 1
+    # a value beyond the bit depth would wrap the block sums: refuse it rather than alias it
+    if int(frame.max()) > vmax or (frame.dtype.kind == "i" and int(frame.min()) < 0):
+        raise FrameError(f"frame pixel values exceed the {bit_depth}-bit range 0..{vmax}")
+
+
+def _block_sums_and_maxima(frame: np.ndarray, n: int, acc: type) -> tuple[np.ndarray, np.ndarray]:
+    """(sums, maxima) of the f x f blocks of a square frame, (n, n) each in ``acc`` (f = side / n)."""
+    side = frame.shape[0]
+    f = side // n
+    a = frame if frame.dtype == acc else frame.astype(acc)
+    # the f rows of each block are consecutive slices of a reshaped row; then the f columns of each block
+    rows = a.reshape(n, f * side)
+    s = rows[:, :side] + rows[:, side : 2 * side] if f > 1 else rows.copy()
+    m = np.maximum(rows[:, :side], rows[:, side : 2 * side]) if f > 1 else rows
+    for k in range(2, f):
+        s += rows[:, k * side : (k + 1) * side]
+        np.maximum(m, rows[:, k * side : (k + 1) * side], out=m)
+    if f == 1:
+        return s, m
+    cols_s = s.reshape(n, n, f)
+    cols_m = m.reshape(n, n, f)
+    out_s = cols_s[:, :, 0] + cols_s[:, :, 1]
+    out_m = np.maximum(cols_m[:, :, 0], cols_m[:, :, 1])
+    for k in range(2, f):
+        out_s += cols_s[:, :, k]
+        np.maximum(out_m, cols_m[:, :, k], out=out_m)
+    return out_s, out_m
+
+
+def _rounded_mean(sums: np.ndarray, area: int) -> np.ndarray:
+    """floor(sum / area + 1/2) in place."""
+    sums += area // 2
+    if area & (area - 1) == 0:
+        sums >>= area.bit_length() - 1
+    else:
+        sums //= area
+    return sums
+
+
+def histogram_median_mad(hist: np.ndarray) -> tuple[int, int]:
+    """(lower median, lower median absolute deviation) of the values a histogram counts (bin i = value i)."""
+    h = np.asarray(hist, dtype=np.int64)
+    total = int(h.sum())
+    if total <= 0:
+        raise FrameError("empty histogram: the frame has no pixels")
+    half = (total + 1) // 2
+    median = int(np.searchsorted(np.cumsum(h), half))
+    levels = np.arange(h.size)
+    dev_hist = np.bincount(np.abs(levels - median), weights=h, minlength=h.size)
+    mad = int(np.searchsorted(np.cumsum(dev_hist), half))
+    return median, mad
+
+
+def _window_index(f: int) -> np.ndarray:
+    """For each of the f x f pixels of a block, the flat positions of its 3x3 neighbourhood in the block's
+    (f + 2) x (f + 2) window, (f*f, 9)."""
+    w = f + 2
+    out = np.empty((f * f, 9), dtype=np.int64)
+    for i in range(f):
+        for j in range(f):
+            out[i * f + j] = [(i + 1 + di) * w + (j + 1 + dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
+    return out
+
+
+_WINDOW_INDEX = {f: _window_index(f) for f in (1, 2, 4)}
+
+
+def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixelMap | None = None) -> Filtered:
+    """Correct the frame's defects and bin it (see the module docstring); the frame must have passed ``check_frame``.
+
+    The corrections are computed on the blocks that need them and added to the block sums, so the frame is read once
+    (``imaging_kernels.block_statistics``) and then only around the defects.
+    """
+    n = cfg.binned_size_px
+    side = frame.shape[0]
+    if side % n != 0:
+        raise FrameError(f"frame side {side} px is not a multiple of binned_size_px {n}")
+    f = side // n
+    area = f * f
+    vmax = (1 << bit_depth) - 1
+    pixels = frame if frame.dtype == np.uint16 else frame.astype(np.uint16)
+    sums, maxima = _scratch(n)
+    binned_image = np.empty((n, n), dtype=np.uint16)
+    hist = np.zeros(vmax + 1, dtype=np.int64)
+    kernels.block_statistics(pixels, f, sums, maxima, binned_image, hist)
+    flat_sums = sums.reshape(-1)
+    flat_binned = binned_image.reshape(-1)
+    flat_frame = pixels.reshape(-1)
+    replaced = 0
+    bad_blocks = np.zeros(0, dtype=np.int64)
+    bad_values = np.zeros(0, dtype=np.int64)
+    if bad is not None and len(bad):
+        if bad.side != side:
+            raise FrameError(f"the bad-pixel map is for a {bad.side} px sensor, the frame is {side} px")
+        bad_values = bad.replacement(flat_frame)
+        delta = bad_values - flat_frame[bad.pixels].astype(np.int64)
+        rows, cols = np.divmod(bad.pixels, side)
+        bad_blocks = (rows // f) * n + cols // f
+        _correct_blocks(flat_sums, flat_binned, hist, bad_blocks, delta, area)
+        replaced = int(bad.pixels.size)
+    background, mad = histogram_median_mad(hist)
+    sigma = max(f * MAD_TO_SIGMA * mad, 1.0)
+    outliers = np.zeros(0, dtype=np.int64)
+    if cfg.outlier_filter and f > 1:
+        # blocks whose brightest pixel stands out; a block's corrected sum keeps the test exact where the map changed
+        # nothing, and the blocks the map changed are examined anyway
+        blocks = kernels.standing_out(sums, maxima, area, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
+                                      float(background))
+        if bad_blocks.size:
+            blocks = np.union1d(blocks, bad_blocks)
+        if blocks.size:
+            outliers, block_delta, changed = _outliers(pixels, blocks, f, n, cfg, background, sigma, bad, bad_values)
+            if changed.size:
+                _correct_blocks(flat_sums, flat_binned, hist, changed, block_delta, area)
+    return Filtered(binned=binned_image, hist=hist, background_dn=background, noise_sigma_dn=float(sigma),
+                    bad_pixels=replaced, outliers=outliers)
+
+
+_SCRATCH = threading.local()
+
+
+def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The block sums (int64) and maxima (uint16) buffers of an n x n binning, allocated once per thread: the FPGA's
+    working memory (fresh 2.5 MB every frame would cost more page faults than the binning itself)."""
+    buf = getattr(_SCRATCH, "blocks", None)
+    if buf is None or buf[0].shape != (n, n):
+        buf = (np.empty((n, n), dtype=np.int64), np.empty((n, n), dtype=np.uint16))
+        _SCRATCH.blocks = buf
+    return buf
+
+
+def _correct_blocks(flat_sums: np.ndarray, flat_binned: np.ndarray, hist: np.ndarray, blocks: np.ndarray,
+                    delta: np.ndarray, area: int) -> None:
+    """Add ``delta`` to the sums of ``blocks`` (repeated blocks add up) and update their rounded means and the
+    histogram; each correction swaps a pixel's value for another of the same bit depth, so sums stay in range."""
+    ub, inv = np.unique(blocks, return_inverse=True)
+    flat_sums[ub] += np.bincount(inv, weights=delta, minlength=ub.size).astype(np.int64)
+    new = (flat_sums[ub] + area // 2) // area
+    np.subtract.at(hist, flat_binned[ub], 1)
+    np.add.at(hist, new, 1)
+    flat_binned[ub] = new
+
+
+def _outliers(frame: np.ndarray, blocks: np.ndarray, f: int, n: int, cfg: ImagingConfig, background: int,
+              sigma: float, bad: BadPixelMap | None, bad_values: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Test every pixel of ``blocks`` (flat block indices); return (flat indices of the outliers, the sum of
+    (replacement - value) of each changed block, the changed blocks)."""
+    side = frame.shape[0]
+    w = f + 2
+    brow, bcol = np.divmod(blocks, n)
+    offs = np.arange(-1, f + 1)
+    # the (f + 2) x (f + 2) window around each block, borders replicated (OpenCV medianBlur's border)
+    rr = np.clip(brow[:, None] * f + offs[None, :], 0, side - 1)
+    cc = np.clip(bcol[:, None] * f + offs[None, :], 0, side - 1)
+    idx = (rr[:, :, None] * side + cc[:, None, :]).reshape(blocks.size, w * w)
+    win = frame.reshape(-1)[idx].astype(np.int64)
+    if bad is not None and len(bad):
+        pos = np.searchsorted(bad.pixels, idx)
+        hit = bad.pixels[np.minimum(pos, bad.pixels.size - 1)] == idx
+        win[hit] = bad_values[pos[hit]]
+    inner = np.arange(1, f + 1)
+    centre_pos = (inner[:, None] * w + inner[None, :]).reshape(-1)
+    centre = win[:, centre_pos]  # (K, f*f)
+    area = f * f
+    k_sigma = cfg.outlier_k_sigma * sigma
+    top = centre.max(axis=1)
+    rest = centre.sum(axis=1) - top
+    dominated = area * top - centre.sum(axis=1) > (area - 1) * k_sigma + (cfg.outlier_ratio - 1.0) * np.maximum(
+        rest - (area - 1) * background, 0)
+    neigh = win[:, _WINDOW_INDEX[f]]  # (K, f*f, 9)
+    median = np.partition(neigh, 4, axis=2)[:, :, 4]
+    above = centre - background
+    flagged = dominated[:, None] & (above > cfg.outlier_ratio * np.maximum(median - background, 0) + k_sigma)
+    if not flagged.any():
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty, empty
+    delta = np.where(flagged, median - centre, 0).sum(axis=1)
+    changed = np.flatnonzero(flagged.any(axis=1))
+    return np.sort(idx[:, centre_pos][flagged]), delta[changed], blocks[changed]
+
+
+def compression_lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
+    """Return the uint8 look-up table, one entry per raw value, of the configured 12->8 bit law (monotonic)."""
+    vmax = (1 << bit_depth) - 1
+    values = np.arange(vmax + 1, dtype=np.float64)
+    if cfg.compression_law == "sqrt":
+        return np.floor(255.0 * np.sqrt(values / vmax) + 0.5).astype(np.uint8)
+    return (np.arange(vmax + 1, dtype=np.int64) >> (bit_depth - 8)).astype(np.uint8)
+
+
+_LUT_CACHE: dict[tuple[int, str], np.ndarray] = {}
+
+
+def lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
+    """Return the compression table of ``cfg``, built once per law (it is a constant of the FPGA)."""
+    key = (bit_depth, cfg.compression_law)
+    table = _LUT_CACHE.get(key)
+    if table is None:
+        table = compression_lut(cfg, bit_depth)
+        table.setflags(write=False)
+        _LUT_CACHE[key] = table
+    return table
+
+
+def binned(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
+    """Return the frame binned to cfg.binned_size_px by the rounded mean of square blocks (raw bit depth), without
+    defect correction."""
+    check_frame(frame, frame.shape[0] if frame.ndim == 2 else -1, bit_depth)
+    n = cfg.binned_size_px
+    if frame.shape[0] % n != 0:
+        raise FrameError(f"frame side {frame.shape[0]} px is not a multiple of binned_size_px {n}")
+    vmax = (1 << bit_depth) - 1
+    area = (frame.shape[0] // n) ** 2
+    acc = np.uint16 if vmax * area <= 0xFFFF else np.uint32
+    return _rounded_mean(_block_sums_and_maxima(frame, n, acc)[0], area)
+
+
+def compressed_8bit(binned_image: np.ndarray, cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
+    """Return the 8-bit image of the configured compression law (for display and downlink)."""
+    return np.take(lut(cfg, bit_depth), binned_image)

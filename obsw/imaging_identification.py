@@ -1,0 +1,468 @@
+"""Step 4 of the imaging chain, feature extraction and identification: which blobs are Didymos and Dimorphos.
+
+Every blob (8-connected region of the binarised image) gets its area, binary (region) centroid, bounding box,
+elongation and 8-bit brightness. A body candidate has at least ``min_body_area_px`` pixels (a hot pixel or a
+cosmic-ray hit that escaped the filter is one pixel) and at most ``max_body_elongation`` (a plume ray or a smeared
+star is longer). Identification uses area, shape and continuity, never a blob's peak pixel alone:
+
+- **Expected sizes.** With a trajectory on board, the frame's prediction (``imaging_geometry.FramePrediction``)
+  gives each body's expected area, pi r^2 times the lit fraction (1 + cos g) / 2 of its disc at phase angle g (the
+  lit surface itself: the blur only adds faint pixels around it), and its largest region, the same with the radius
+  k r + blur + 1 (k the largest radius factor: shape and range uncertainty; blur ``blur_margin_px``; one pixel of
+  digitisation).
+- **Didymos** is the candidate whose area is nearest the expected Didymos area in ratio, among those nearer it than
+  the expected Dimorphos area (a blob touching the frame's edge may be smaller); without a prediction, the largest.
+  With a pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset
+  predicts Dimorphos, and a Dimorphos-sized blob that continues Dimorphos while that offset puts Didymos off the
+  image is Dimorphos alone (near C/A).
+- **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
+  trimmed to its brightest pixels of the expected area of both bodies (``trim``), the 8-connected parts of which
+  take its place. The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest
+  pixels of Dimorphos's expected area: the ejecta leave Dimorphos and fade away from it, so the brightest part of
+  the blob is the body. No threshold is tuned on a flyby: the areas come from the known sizes and the range.
+- **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
+  and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
+  a prediction: within ``dimorphos_max_separation_didymos_diameters`` of Didymos). A candidate there must be
+  bright like a body (peak at least ``dimorphos_min_peak_fraction`` of Didymos's) and not a piece of Didymos's
+  thin crescent. The one continuing the last pair's relative offset wins; else the one whose area is nearest the
+  expected Dimorphos area (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of Didymos).
+- **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
+  its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
+  the radius of a disc whose lit part has the region's area).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from obsw.config import ImagingConfig
+from obsw.imaging_geometry import FramePrediction, phase_offset_px
+from obsw.imaging_labelling import Components, connected_components
+
+
+@dataclass(frozen=True, slots=True)
+class Blob:
+    """One 8-connected region of the binarised 512x512 image (or the brightest part of one, ``trimmed_from``)."""
+
+    label: int  # 1-based, raster order of the region's first pixel (OpenCV numbering); trimmed parts follow
+    area_px: int
+    centroid_col_row: tuple[float, float]  # the body's centre: the region centroid, phase-corrected for a body
+    bbox_col_row_w_h: tuple[int, int, int, int]  # left column, top row, width, height, px
+    mean_dn8: float  # mean 8-bit brightness of the region's pixels
+    peak_dn8: int
+    elongation: float  # major/minor axis ratio from the second central moments (1 for a disc)
+    threshold_dn8: int  # the region is the 8-connected set of pixels above this 8-bit value
+    region_centroid_col_row: tuple[float, float]  # binary centroid of the region's pixels, px at binned scale
+    trimmed_from: int = 0  # label of the region this is the brightest part of (0: a region of the binarised image)
+    touches_edge: bool = False  # the region reaches the image's border (a body there may be cut)
+    cuts: tuple[int, ...] = ()  # the pixel counts it was cut to, in order, from its region (``Regions.parts``)
+
+    @property
+    def diameter_px(self) -> int:
+        """Largest side of the bounding box: the apparent diameter of a body, even a crescent."""
+        return max(self.bbox_col_row_w_h[2], self.bbox_col_row_w_h[3])
+
+
+@dataclass(frozen=True, slots=True)
+class Regions:
+    """The labelled foreground of a frame: its components and each foreground pixel's 8-bit value; the pixels of the
+    parts cut out of blobs are kept by label."""
+
+    components: Components
+    values8: np.ndarray  # 8-bit value of each foreground pixel, in components.pixel_index order
+    width: int
+    threshold_dn8: int
+    part_pixels: dict[int, np.ndarray] = field(default_factory=dict)  # label of a part -> its foreground positions
+    histograms: dict[str, np.ndarray] = field(default_factory=dict)  # "regions": each region's 8-bit histogram
+
+    def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
+              image_size: int | None = None, cuts: tuple[int, ...] = (), min_area_px: int = 1) -> list[Blob]:
+        """The Blob records of the components of at least ``min_area_px`` pixels (coordinates shifted by
+        ``offset_col_row``); labels number every component."""
+        c = self.components
+        k = c.area_px.size
+        if k == 0:
+            return []
+        comp = c.pixel_component
+        mean = np.bincount(comp, weights=self.values8, minlength=k) / c.area_px
+        # each component's brightest value: the last non-empty bin of its 256-bin histogram
+        counts = np.bincount(comp * 256 + self.values8, minlength=k * 256).reshape(k, 256)
+        peak = 255 - np.argmax(counts[:, ::-1] > 0, axis=1)
+        if first_label == 1:
+            self.histograms["regions"] = counts
+        dx, dy = offset_col_row
+        last = (image_size if image_size is not None else self.width) - 1
+        out = []
+        keep = np.flatnonzero(c.area_px >= min_area_px)
+        for i, area, cc, cr, x, y, w, h, m, p, e in zip(
+                keep.tolist(), c.area_px[keep].tolist(), c.centroid_col[keep].tolist(), c.centroid_row[keep].tolist(),
+                c.left[keep].tolist(), c.top[keep].tolist(), c.width[keep].tolist(), c.height[keep].tolist(),
+                mean[keep].tolist(), peak[keep].tolist(), c.elongation[keep].tolist(), strict=True):
+            x, y = x + dx, y + dy
+            centroid = (cc + dx, cr + dy)
+            out.append(Blob(label=first_label + i, area_px=area, centroid_col_row=centroid,
+                            bbox_col_row_w_h=(x, y, w, h), mean_dn8=m, peak_dn8=p, elongation=e,
+                            threshold_dn8=self.threshold_dn8, region_centroid_col_row=centroid,
+                            trimmed_from=trimmed_from, cuts=cuts,
+                            touches_edge=x <= 0 or y <= 0 or x + w - 1 >= last or y + h - 1 >= last))
+        return out
+
+    def pixels_of(self, blob: Blob) -> np.ndarray:
+        """Positions (in ``components.pixel_index`` order) of a blob's pixels."""
+        part = self.part_pixels.get(blob.label)
+        if part is not None:
+            return part
+        return np.flatnonzero(self.components.pixel_component == blob.label - 1)
+
+    def parts(self, blob: Blob, n_pixels: int, first_label: int) -> list[Blob]:
+        """The brightest part of a blob: its pixels at or above the level that leaves at least ``n_pixels`` of
+        them (the n-th largest value), split into 8-connected parts, in raster order; [blob] if it is not larger."""
+        sel = self.pixels_of(blob)
+        vals = self.values8[sel]
+        n = max(int(n_pixels), 1)
+        if vals.size <= n:
+            return [blob]
+        level = int(np.partition(vals, vals.size - n)[vals.size - n])
+        keep = np.flatnonzero(vals >= level)
+        pix = self.components.pixel_index[sel[keep]]
+        rows, cols = np.divmod(pix, self.width)
+        left, top = int(cols.min()), int(rows.min())
+        h, w = int(rows.max()) - top + 1, int(cols.max()) - left + 1
+        crop = np.zeros((h, w), dtype=bool)
+        crop[rows - top, cols - left] = True
+        position = np.full((h, w), -1, dtype=np.int64)
+        position[rows - top, cols - left] = sel[keep]
+        sub = connected_components(crop)
+        flat_pos = position.reshape(-1)[sub.pixel_index]
+        part = Regions(sub, self.values8[flat_pos], w, level - 1)
+        out = part.blobs(first_label, (left, top), blob.trimmed_from or blob.label, image_size=self.width,
+                         cuts=blob.cuts + (n,))
+        for j, b in enumerate(out):
+            self.part_pixels[b.label] = flat_pos[sub.pixel_component == j]
+        return out
+
+
+def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int) -> Blob:
+    """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``):
+    a lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels
+    (ties: the larger, then raster order)."""
+    parts = regions.parts(blob, n_pixels, first_label)
+    return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
+
+
+@dataclass(frozen=True, slots=True)
+class Expected:
+    """The areas and radii a prediction gives the two bodies in this frame, binned px."""
+
+    didymos_area: float
+    dimorphos_area: float
+    didymos_area_max: float
+    dimorphos_area_max: float
+    didymos_radius_max: float
+    dimorphos_radius_max: float
+    orbit_radius_max: float
+
+
+def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected | None:
+    """The expected and largest areas of both bodies from a prediction with sizes; None without."""
+    if prediction is None or prediction.didymos_radius_px is None or prediction.dimorphos_radius_px is None \
+            or prediction.orbit_radius_max_px is None:
+        return None
+    lit = 0.5 * (1.0 - prediction.sun_camera[2])  # (1 + cos g) / 2, the body near the boresight: cos g = -sun_z
+    b = cfg.blur_margin_px
+    k = prediction.radius_factor_max
+    r_did, r_dim = prediction.didymos_radius_px, prediction.dimorphos_radius_px
+    a_min = float(cfg.min_body_area_px)
+    return Expected(
+        didymos_area=max(math.pi * r_did ** 2 * lit, a_min),
+        dimorphos_area=max(math.pi * r_dim ** 2 * lit, a_min),
+        didymos_area_max=math.pi * (k * r_did + b + 1.0) ** 2 * lit,
+        dimorphos_area_max=math.pi * (k * r_dim + b + 1.0) ** 2 * lit,
+        didymos_radius_max=k * r_did + b,
+        dimorphos_radius_max=k * r_dim + b,
+        orbit_radius_max=prediction.orbit_radius_max_px,
+    )
+
+
+def _distance(a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Return the Euclidean distance between two (col, row) points."""
+    return math.hypot(a[0] - b[0], a[1] - b[1])
+
+
+def _box_distance(blob: Blob, point: tuple[float, float]) -> float:
+    """Distance from a point to a blob's bounding box (0 inside)."""
+    x, y, w, h = blob.bbox_col_row_w_h
+    dx = max(x - point[0], 0.0, point[0] - (x + w - 1))
+    dy = max(y - point[1], 0.0, point[1] - (y + h - 1))
+    return math.hypot(dx, dy)
+
+
+def _relative(blob: Blob, origin: Blob) -> tuple[float, float]:
+    """Return the region centroid of ``blob`` relative to that of ``origin``."""
+    a, o = blob.region_centroid_col_row, origin.region_centroid_col_row
+    return (a[0] - o[0], a[1] - o[1])
+
+
+def _relative_jump_px(didymos: Blob, cfg: ImagingConfig) -> float:
+    """Return the largest change between frames of the Dimorphos offset from this Didymos, px."""
+    return cfg.dimorphos_max_relative_jump_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+
+
+def _continues_dimorphos_alone(blob: Blob, prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig) -> bool:
+    """Return whether ``blob`` is Dimorphos seen without Didymos: Dimorphos-like area, Didymos's centre off-image."""
+    area_vs_dim = abs(math.log(blob.area_px / prev_dim.area_px))
+    area_vs_did = abs(math.log(blob.area_px / prev_did.area_px))
+    rel = _relative(prev_dim, prev_did)
+    col = blob.region_centroid_col_row[0] - rel[0]
+    row = blob.region_centroid_col_row[1] - rel[1]
+    last = cfg.binned_size_px - 1
+    return area_vs_dim < area_vs_did and not (0.0 <= col <= last and 0.0 <= row <= last)
+
+
+def _box_gap_px(a: Blob, b: Blob) -> int:
+    """Return the number of pixels between two bounding boxes along the axis that separates them most (0: touching
+    or overlapping)."""
+    ax, ay, aw, ah = a.bbox_col_row_w_h
+    bx, by, bw, bh = b.bbox_col_row_w_h
+    return max(bx - (ax + aw), ax - (bx + bw), by - (ay + ah), ay - (by + bh), 0)
+
+
+def _piece_of_crescent(blob: Blob, didymos: Blob, cfg: ImagingConfig) -> bool:
+    """Return whether ``blob`` may be a piece of Didymos's thin crescent broken off at the threshold: Didymos is
+    elongated and the blob lies within a few pixels of its box."""
+    return didymos.elongation >= cfg.crescent_min_elongation and _box_gap_px(blob, didymos) <= cfg.crescent_gap_px
+
+
+def _largest(blobs: list[Blob]) -> Blob:
+    """Return the blob of largest area, the brighter peak then the first in raster order breaking ties."""
+    return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
+
+
+def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None) -> Blob:
+    """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
+    fainter clump of ejecta of its size or a small star; without sizes, the largest."""
+    if exp is None or regions is None:
+        return _largest(blobs)
+    n = round(exp.didymos_area)
+    return max(blobs, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
+
+
+def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
+    """Return the (didymos, dimorphos) that continuity refers to: the previous frame's pair, or the last pair seen
+    when the frames since saw no Dimorphos, for at most ``cfg.pair_memory_frames`` frames and while Didymos is at
+    most ``cfg.pair_memory_max_didymos_px`` across (far enough for the offset to change slowly); else (None, None).
+    ``previous`` is the previous frame's ``Detections``."""
+    if previous is None:
+        return None, None
+    did, dim = previous.didymos, previous.dimorphos  # type: ignore[attr-defined]
+    if did is not None and dim is not None:
+        return did, dim
+    pair, age = previous.pair, previous.pair_age_frames  # type: ignore[attr-defined]
+    if dim is None and pair is not None and age < cfg.pair_memory_frames \
+            and pair[0].diameter_px <= cfg.pair_memory_max_didymos_px:
+        return pair
+    return None, None
+
+
+def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
+                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None) -> Blob:
+    """Didymos among the ``likely`` candidates (see the module docstring); ``cands`` are all candidates."""
+    didymos = _best_didymos(likely, exp, regions)
+    if prev_did is not None and prev_dim is not None:
+        # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
+        predicted = _relative(prev_dim, prev_did)
+        paired = [c for c in likely if any(
+            d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in cands)]
+        if paired:
+            didymos = _best_didymos(paired, exp, regions)
+    return didymos
+
+
+@dataclass(frozen=True, slots=True)
+class _Place:
+    """Where the trajectory puts Dimorphos: the point, and the radius around it Dimorphos's region centroid is in."""
+
+    col_row: tuple[float, float]
+    radius_px: float
+
+
+def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: ImagingConfig) -> _Place | None:
+    """Dimorphos's predicted place, when the prediction gives one with a finite uncertainty."""
+    if exp is None or prediction is None or prediction.dimorphos_col_row is None \
+            or prediction.dimorphos_uncertainty_px is None or not math.isfinite(prediction.dimorphos_uncertainty_px):
+        return None
+    return _Place(prediction.dimorphos_col_row,
+                  prediction.dimorphos_uncertainty_px + exp.dimorphos_radius_max + cfg.centroid_noise_px)
+
+
+def _didymos_may_be_out(place: _Place, exp: Expected, n: int) -> bool:
+    """Whether Didymos's centre may lie outside the n x n image, Dimorphos being at its predicted place."""
+    reach = place.radius_px + exp.orbit_radius_max
+    c, r = place.col_row
+    return min(c, r, n - 1 - c, n - 1 - r) < reach
+
+
+def _dimorphos_gate(didymos: Blob, exp: Expected | None, cfg: ImagingConfig) -> float:
+    """Largest distance of Dimorphos's region centroid from Didymos's, px."""
+    if exp is None:
+        return cfg.dimorphos_max_separation_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+    return exp.orbit_radius_max + exp.didymos_radius_max + exp.dimorphos_radius_max + cfg.centroid_noise_px
+
+
+def _near(blob: Blob, point: tuple[float, float], limit: float, oversized: bool) -> bool:
+    """Whether a blob is within ``limit`` of a point: its centroid, or its box for a blob holding ejecta (Dimorphos,
+    their source, is at one end of it)."""
+    return (_box_distance(blob, point) if oversized else _distance(blob.region_centroid_col_row, point)) <= limit
+
+
+def _top_light(counts: np.ndarray, n: int, threshold_dn8: int) -> np.ndarray:
+    """Sum above ``threshold_dn8`` of the n brightest values of each row of 256-bin histograms (K, 256), over n."""
+    down = counts[:, ::-1]  # from the brightest value down
+    values = np.arange(255, -1, -1, dtype=np.int64) - threshold_dn8
+    taken = np.minimum(down, np.maximum(n - (np.cumsum(down, axis=1) - down), 0))  # the top n, bin by bin
+    return (taken * values).sum(axis=1) / n
+
+
+def aperture_dn8(regions: Regions, blob: Blob, n_pixels: int) -> float:
+    """The light a body of ``n_pixels`` would hold: the mean, over ``n_pixels``, of a blob's brightest pixels above
+    the frame's threshold (a blob with fewer pixels counts the rest as dark), 8-bit DN. A single pixel cannot set it,
+    a small star holds little of it, a faint clump of ejecta less than a lit surface."""
+    n = max(1, int(n_pixels))
+    table = regions.histograms.get("regions")
+    if table is None or blob.trimmed_from:
+        counts = np.bincount(regions.values8[regions.pixels_of(blob)], minlength=256)[None, :]
+        return float(_top_light(counts, n, regions.threshold_dn8)[0])
+    key = f"aperture {n}"
+    light = regions.histograms.get(key)
+    if light is None:  # every region's at once: many candidates share each expected area
+        light = regions.histograms[key] = _top_light(table, n, regions.threshold_dn8)
+    return float(light[blob.label - 1])
+
+
+def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, place: _Place | None,
+                      prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig,
+                      regions: Regions | None) -> Blob | None:
+    """Dimorphos among the candidates, Didymos chosen (see the module docstring); None if not seen."""
+    gate = _dimorphos_gate(didymos, exp, cfg)
+    origin = didymos.region_centroid_col_row
+
+    def oversized(b: Blob) -> bool:
+        return exp is not None and b.area_px > exp.dimorphos_area_max
+
+    if exp is not None and regions is not None:
+        n = round(exp.dimorphos_area)
+        least = cfg.dimorphos_min_peak_fraction * aperture_dn8(regions, didymos, n)
+
+        def bright(b: Blob) -> bool:
+            return aperture_dn8(regions, b, n) >= least
+    else:
+        def bright(b: Blob) -> bool:
+            return b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
+
+    in_gate = [
+        b for b in cands
+        if b is not didymos
+        and bright(b)
+        and _near(b, origin, gate, oversized(b))
+        and (place is None or _near(b, place.col_row, place.radius_px, oversized(b)))
+        and not _piece_of_crescent(b, didymos, cfg)
+    ]
+    if not in_gate:
+        return None
+    if prev_did is not None and prev_dim is not None:
+        predicted = _relative(prev_dim, prev_did)
+        jump = _relative_jump_px(didymos, cfg)
+        continuing = [b for b in in_gate if _distance(_relative(b, didymos), predicted) <= jump]
+        if continuing:
+            # a continuing Dimorphos may outgrow the area limits: the ejecta grow around it
+            return min(continuing, key=lambda b: _distance(_relative(b, didymos), predicted))
+    if exp is None or regions is None:
+        sized = [b for b in in_gate if b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px]
+        return _largest(sized) if sized else None
+    # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star
+    n = round(exp.dimorphos_area)
+    return max(in_gate, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
+
+
+def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob], exp: Expected,
+           prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig, next_label: int
+           ) -> tuple[list[Blob], list[Blob], Blob, int]:
+    """Replace Didymos's blob by the parts of its brightest pixels of both bodies' expected area and choose Didymos
+    again: (candidates, Didymos candidates, Didymos, next free label)."""
+    parts = [p for p in regions.parts(didymos, round(exp.didymos_area + exp.dimorphos_area), next_label)
+             if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
+    if not parts or parts == [didymos]:
+        return cands, likely, didymos, next_label
+    cands = [c for c in cands if c is not didymos] + parts
+    likely = [c for c in likely if c is not didymos] + parts
+    return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), next_label + len(parts)
+
+
+def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
+                    prediction: FramePrediction | None = None, regions: Regions | None = None
+                    ) -> tuple[Blob | None, Blob | None]:
+    """Return (didymos, dimorphos) among the blobs, either None when not seen (see the module docstring).
+
+    ``previous`` is the previous frame's ``Detections`` (continuity); ``regions`` the frame's labelled foreground,
+    needed to trim blobs that hold ejecta (without it, blobs are taken whole). Centroids are not phase-corrected
+    here (``phase_corrected``).
+    """
+    cands = [b for b in blobs if b.area_px >= cfg.min_body_area_px and b.elongation <= cfg.max_body_elongation]
+    if not cands:
+        return None, None
+    exp = expected(prediction, cfg)
+    place = _place(prediction, exp, cfg)
+    prev_did, prev_dim = reference_pair(previous, cfg)
+    next_label = 1 + max(max(b.label for b in blobs),
+                         0 if regions is None else int(regions.components.area_px.size))
+    biggest = max(cands, key=lambda b: (b.area_px, -b.label))
+    if prev_did is not None and prev_dim is not None and previous.dimorphos is prev_dim \
+            and _continues_dimorphos_alone(biggest, prev_did, prev_dim, cfg):  # type: ignore[attr-defined]
+        return None, biggest
+    likely = cands
+    if place is not None and exp is not None:
+        # Didymos is within the orbit's radius of Dimorphos, wherever the trajectory puts it
+        reach = place.radius_px + exp.orbit_radius_max + exp.didymos_radius_max
+        likely = [c for c in cands if _box_distance(c, place.col_row) <= reach]
+        if not likely:
+            return None, None
+    didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions)
+    if place is not None and exp is not None and didymos.area_px < math.sqrt(exp.didymos_area * exp.dimorphos_area) \
+            and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
+            and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max):
+        # no blob of Didymos's size: a Dimorphos-sized blob where Dimorphos is expected, Didymos out of the image
+        return None, didymos
+    if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
+        # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
+        cands, likely, didymos, next_label = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg,
+                                                   next_label)
+    elif exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area:
+        # room for both bodies: Dimorphos may be merged with Didymos, bridged by ejecta or the blur; a part of
+        # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos
+        split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label)
+        found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions)
+        if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
+                and found.area_px <= exp.dimorphos_area_max:
+            cands, likely, didymos, next_label = split
+    dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
+    if dimorphos is not None and exp is not None and regions is not None and (
+            dimorphos.area_px > exp.dimorphos_area_max
+            or dimorphos.trimmed_from and dimorphos.area_px > exp.dimorphos_area):
+        # larger than Dimorphos can be, or cut out of a blob that held ejecta: keep its brightest part of its size
+        dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label)
+    return didymos, dimorphos
+
+
+def phase_corrected(blob: Blob | None, radius_px: float | None, prediction: FramePrediction | None,
+                    cfg: ImagingConfig, fov_deg: float) -> Blob | None:
+    """The blob with its centroid moved from the lit part to the body's centre (``phase_offset_px``) for the body's
+    predicted apparent radius ``radius_px``; unchanged without one (no trajectory on board)."""
+    if blob is None or prediction is None or radius_px is None or not cfg.phase_correction:
+        return blob
+    dc, dr = phase_offset_px(prediction.sun_camera, blob.region_centroid_col_row, radius_px, fov_deg,
+                             cfg.binned_size_px)
+    c = blob.region_centroid_col_row
+    return replace(blob, centroid_col_row=(c[0] - dc, c[1] - dr))
