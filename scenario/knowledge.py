@@ -25,6 +25,8 @@ KNOWLEDGE_PAIRS: tuple[tuple[str, str], ...] = (
     ("obsw.camera.boresight_body", "universe.camera.boresight_body"),
     ("obsw.camera.exposure_s", "universe.camera.exposure_s"),
     ("obsw.camera.frame_period_s", "universe.camera.frame_period_s"),
+    ("obsw.attitude.star_tracker_noise_arcsec", "universe.sensors.star_tracker.noise_arcsec"),
+    ("obsw.attitude.gyro_arw_deg_sqrt_h", "universe.sensors.gyro.arw_deg_sqrt_h"),
     ("ground.link.one_way_light_time_s", "universe.link.one_way_light_time_s"),
     ("ground.link.downlink_rate_bps", "universe.link.downlink_rate_bps"),
     ("ground.link.uplink_rate_bps", "universe.link.uplink_rate_bps"),

@@ -1,7 +1,9 @@
 """Zero latencies reproduce the zero-time flight software: the executive with ``timing.modelled`` false gives the
 telemetry (housekeeping by its zero-time fields), torques, frames, uplink and truth recorded from the flight
 software before the executive (commit a3c702c; recorded again at 30b1117, after the PUS-C and TC authentication
-changes, with the in-process keys fixed by the seed), for the same seed.
+changes, with the in-process keys fixed by the seed; and again with the attitude estimator, a multiplicative EKF
+that filters the star tracker and removes the estimated gyro bias, and on-board FDIR: same uplink, new torques),
+for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -27,10 +29,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "2e54ed00698112915440c9f58dccfbd250a16df1558fbd3e8c734214bb47d85b",
-    "replies": "db8646b58d3c047ab3134094707f9b0b1d863ac2782feb5408c9b96058cbc22d",
+    "tm": "dcb2964fe9d295d769a4b8b5c8eaa19fea80ee4b94a3af270960f06d5b0dce70",
+    "replies": "50b4f35be93b708346f109bc4bcc4f797116ab63a0d35702ca7e7defd745a9f9",
     "tc": "0cdd6408d0e9c0ba32da9ef6691b41ea3a5ccf7ec6316c717b474e3b8294e077",
-    "truth": "1afccd584357346e38230f147a6a476303578532b48e56e0a5c90894b785fd14",
+    "truth": "3fb817cce0b5add15589e9b914b33768168d04c4fef06a6284313179cb01e891",
     "n_tm": 119,
     "n_hk": 30,
     "frames": 40,
