@@ -166,6 +166,7 @@ class Parameter(IntEnum):
     TC_REJECTED_AUTH = 17  # count
     FRAMES_DISCARDED = 18  # count
     MEASUREMENTS_REJECTED = 19  # count
+    EXPOSURE_TO_CENTROID = 20  # from the exposure of the last frame used to its line of sight on board, s
 
 
 class CheckType(IntEnum):

@@ -226,10 +226,13 @@ class EventActionConfig(Config):
 DEFAULT_MONITORING = (
     MonitoringDefinition(pmon_id=1, parameter=Parameter.GYRO_BIAS, check_type=CheckType.LIMIT, repetition=5,
                          low=0.0, high=1.7453292519943295e-04, severity=Severity.MEDIUM),
+    MonitoringDefinition(pmon_id=2, parameter=Parameter.EXPOSURE_TO_CENTROID, check_type=CheckType.LIMIT,
+                         repetition=3, low=0.0, high=0.6, severity=Severity.MEDIUM),
 )
 """Default service 12 definitions: the estimated gyro bias within 0.01 deg/s (five times the estimate's noise with
 the default filter, tests/obsw/test_attitude.py; the gyro's own bias instability is 1 deg/h), five samples in a
-row."""
+row; a frame's line of sight on board within 0.6 s of its exposure (three times the 0.2 s of the default timing
+model: readout, FPGA stages and software), three samples in a row."""
 
 DEFAULT_EVENT_ACTIONS = (EventActionConfig(event="WHEEL_FAILED", command="set_wheel_set", args={"wheels": 0}),)
 """Default service 19 definitions: a wheel found failed switches the control to the wheels not found failed."""

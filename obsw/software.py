@@ -536,6 +536,7 @@ class FlightSoftware:
             P.FRAME_OVERRUNS: float(ex.frame_overruns), P.SKIPPED_RELEASES: float(ex.skipped),
             P.TC_REJECTED_AUTH: float(self.security.housekeeping()["tc_rejected_auth"]),
             P.FRAMES_DISCARDED: float(self.frame_watch.discarded), P.MEASUREMENTS_REJECTED: float(self.lock_gate.rejected),
+            P.EXPOSURE_TO_CENTROID: self._exposure_to_centroid_s,
         }
         for k in range(self.axes.shape[1]):
             values[P[f"WHEEL_MOMENTUM_{k}"]] = float(self._wheel_h[k])

@@ -19,6 +19,7 @@ from contracts.seeding import rng_streams
 from contracts.textfile import TextFileError, load_yaml, read_text
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
+from scenario.expectation import Expectation
 from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
 from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
@@ -41,6 +42,8 @@ class Scenario(Config):
     obsw: ObswConfig = ObswConfig()
     ground: GroundConfig = GroundConfig()
     bus: BusConfig = BusConfig()
+    expect: Expectation | None = Field(None, description="what a fault campaign expects of the run "
+                                       "(scenario.expectation; flyby campaign)")
     knowledge_errors: tuple[str, ...] = Field(
         (),
         description="knowing fields (obsw.*, ground.link.*) allowed to differ from the truth they know, as dotted "
