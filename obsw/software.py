@@ -200,8 +200,11 @@ class FlightSoftware:
         self._attitude_sigma_rad = 0.0
         self._star_tracker_out = False
         self._outage_start: float | None = None
-        self._torque_before = np.zeros(n_wheels)  # the torques of the period before the last
-        self._impulse = np.zeros(n_wheels)  # impulse commanded to each wheel over the last period, N m s
+        # the torques of the last reply and of the one before, and when the last took effect: what the wheels got
+        self._applied: tuple[np.ndarray, np.ndarray, float] = (np.zeros(n_wheels), np.zeros(n_wheels), 0.0)
+        self._impulse = np.zeros(n_wheels)  # impulse commanded to each wheel since the last momentum measured, N m s
+        self._impulse_s = 0.0  # the time it spans, s
+        self._measured_h = False  # the attitude task measured the wheel momenta this period
         self._step_sequence = 0
         self._wheel_speed = np.zeros(n_wheels)
         self._wheel_h = np.zeros(n_wheels)
@@ -268,6 +271,11 @@ class FlightSoftware:
         self._req = req
         self._frame_request_out = None
         self._step_sequence = self.executive.sequence  # events posted from here on are on this tick's time scale
+        # the impulse of the period that ended at this tick: the torques before until the last reply's took effect
+        before, after, d = self._applied
+        self._impulse = self._impulse + before * d + after * (self.cfg.control_period_s - d)
+        self._impulse_s += self.cfg.control_period_s
+        self._measured_h = False
         for raw in req.uplink:
             self.executive.post(EventKind.TC_ARRIVED, tick, raw)
         meta = req.frame
@@ -288,6 +296,7 @@ class FlightSoftware:
             self._event(pus.FrameOverrunEvent(minor_frame=report.minor_frame, late_s=late), next_tick,
                         f"minor frame {report.minor_frame} overran the next tick by {late * 1e3:.1f} ms")
         self._frame_overrunning = report.overrun
+        self._applied = (self._applied[1], self._torque.copy(), self._actuation_delay_s)
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
         return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in self._torque), clock_adjust_s=adjust,
                          frame_request=self._frame_request_out, downlink=tuple(self._tm),
@@ -399,10 +408,7 @@ class FlightSoftware:
                             f"star tracker solutions again after {lasted:.1f} s")
         self._wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
         self._wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ self._omega + self._wheel_speed)
-        # the impulse of the period that ended at this tick: the torques before, until that control task finished
-        d = self._actuation_delay_s
-        self._impulse = self._torque_before * d + self._torque * (self.cfg.control_period_s - d)
-        self._torque_before = self._torque
+        self._measured_h = True
         return Work()
 
     def _task_imaging(self, act: Activation) -> Work:
@@ -462,7 +468,11 @@ class FlightSoftware:
             self._event(pus.WheelSaturationEvent(wheel=w.wheel, momentum_nms=w.momentum_nms), now,
                         f"wheel {w.wheel} saturated at {w.momentum_nms:+.4f} N m s")
             self._mode_event(self.modes.handle(WheelSaturation(w.wheel), now), now)
-        for f in self.wheel_health.update(self._wheel_h, self._impulse, self.cfg.control_period_s):
+        failures = []
+        if self._measured_h:  # over the periods since the momenta were last measured (a skipped attitude task)
+            failures = self.wheel_health.update(self._wheel_h, self._impulse, self._impulse_s)
+            self._impulse, self._impulse_s = np.zeros_like(self._impulse), 0.0
+        for f in failures:
             self._event(pus.WheelFailedEvent(wheel=f.wheel, commanded_nms=f.commanded_nms, measured_nms=f.measured_nms),
                         now, f"wheel {f.wheel} failed: {f.commanded_nms:+.2e} N m s commanded over the window, "
                         f"{f.measured_nms:+.2e} N m s measured")
