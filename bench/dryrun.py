@@ -1,12 +1,13 @@
 """Benchmark of the timeline dry run and of the replay, against runs of the same flyby measured in the same session.
 
-Run: .venv/bin/python bench/dryrun.py [--rounds N] [--jobs J]
+Run: .venv/bin/python bench/dryrun.py [--rounds N] [--jobs J] [--no-dry-run]
 Measured, each round in turn (so a slow spell of this shared machine hits them alike):
 - reference: one in-process run of the nominal flyby at centroid-level fidelity (what one dry-run case costs);
 - the dry run of configs/timelines/flyby-imaging.yaml on the nominal scenario (five cases, J at a time);
 - the same on ground-early-knowledge (the C/A-240 s rows refused: no imaging, mostly STANDBY);
-- the replay of a recorded nominal run (4200 periods, 463 frames) through the flight software, image level.
-Medians over the rounds and their ratios to the reference are printed; also the recorded run's size.
+- the replay of a recorded nominal run (4200 periods, 463 frames) through the flight software, image level, its
+  frames kept by reference (rendered again and checked) and kept raw (read from the record).
+Medians over the rounds and their ratios to the reference are printed; also the two records' sizes.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--rounds", type=int, default=3)
     p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--no-dry-run", action="store_true", help="time the reference and the replays only")
     args = p.parse_args()
     nominal, timeline = load_run_inputs(SCENARIOS / "nominal.yaml")
     assert timeline is not None
@@ -44,18 +46,21 @@ def main() -> None:
     early = load_scenario(SCENARIOS / "ground-early-knowledge.yaml")
     imaging = load_timeline(TIMELINE)
     with tempfile.TemporaryDirectory() as tmp:
-        record = Path(tmp) / STEP_RECORD
-        t0 = perf_counter()
-        run_in_process(nominal, timeline, record=record)
-        print(f"recorded nominal run (image level) in {perf_counter() - t0:.1f} s: {STEP_RECORD} "
-              f"{record.stat().st_size / 1e6:.1f} MB")
-        items = {
-            "reference: one centroid-level in-process run": lambda: run_in_process(centroid, timeline),
-            f"dry run, nominal (5 cases, {args.jobs} at a time)": lambda: dry_run(nominal, imaging, jobs=args.jobs),
-            f"dry run, ground-early-knowledge (5 cases, {args.jobs} at a time)":
-                lambda: dry_run(early, imaging, jobs=args.jobs),
-            "replay of the recorded nominal run": lambda: replay(record),
-        }
+        records = {frames: Path(tmp) / f"{frames}-{STEP_RECORD}" for frames in ("reference", "raw")}
+        for frames, record in records.items():
+            t0 = perf_counter()
+            run_in_process(nominal, timeline, record=record, record_frames=frames)  # type: ignore[arg-type]
+            print(f"recorded nominal run (image level, frames {frames}) in {perf_counter() - t0:.1f} s: "
+                  f"{STEP_RECORD} {record.stat().st_size / 1e6:.2f} MB")
+        items = {"reference: one centroid-level in-process run": lambda: run_in_process(centroid, timeline)}
+        if not args.no_dry_run:
+            items[f"dry run, nominal (5 cases, {args.jobs} at a time)"] = lambda: dry_run(nominal, imaging,
+                                                                                          jobs=args.jobs)
+            items[f"dry run, ground-early-knowledge (5 cases, {args.jobs} at a time)"] = lambda: dry_run(
+                early, imaging, jobs=args.jobs)
+        items["replay of the recorded nominal run, frames by reference (rendered again)"] = lambda: replay(
+            records["reference"])
+        items["replay of the recorded nominal run, frames raw"] = lambda: replay(records["raw"])
         times: dict[str, list[float]] = {k: [] for k in items}
         for r in range(args.rounds):
             for name, fn in items.items():

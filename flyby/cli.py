@@ -9,6 +9,7 @@ from pathlib import Path
 
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
+from contracts.steplog import FRAME_KEEPING
 from scenario.model import Scenario, load_run_inputs, timeline_checks
 
 
@@ -55,7 +56,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"flyby run: --keys: {exc}", file=sys.stderr)
             return EXIT_CONFIG
     return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level,
-                  insecure=args.insecure, tc_keys=args.keys)
+                  insecure=args.insecure, tc_keys=args.keys, record_frames=args.record_frames)
 
 
 def cmd_credentials(args: argparse.Namespace) -> int:
@@ -152,6 +153,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="telecommand key file to use (mode 0600; default: fresh keys for this run)")
     r.add_argument("--insecure", action="store_true",
                    help="plain-TCP bus without TLS or access control, for debugging (prints a warning)")
+    r.add_argument("--record-frames", choices=FRAME_KEEPING, default=FRAME_KEEPING[0],
+                   help="how the step record (obsw_steps.rec) keeps camera frames: by reference (default: a digest, "
+                   "the replay renders them again from the scenario and the truth) or raw (the pixels, about 0.55 MB "
+                   "a frame; replays with a build whose universe renders differently)")
     r.set_defaults(func=cmd_run)
     cr = sub.add_parser("credentials", help="write a CA, certificates and TC keys for nodes started by hand")
     cr.add_argument("folder", type=Path, help="a new or empty folder (made private, 0700)")

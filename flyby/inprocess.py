@@ -15,7 +15,7 @@ import numpy as np
 
 from contracts.messages import GroundReply, StepReply, StepRequest, TruthRecord, decode, encode
 from contracts.sdls import KeyRing
-from contracts.steplog import StepLogWriter
+from contracts.steplog import FrameKeeping, FrameTruth, StepLogWriter
 from ground.segment import GroundSegment, ReceivedPacket, TimelineUpload
 from obsw.software import FlightSoftware
 from scenario import compose
@@ -39,17 +39,21 @@ class InProcessRun:
 
 def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through_codec: bool = False,
                    on_step: Callable[[StepRequest, StepReply, np.ndarray | None], None] | None = None,
-                   max_steps: int | None = None, record: Path | None = None) -> InProcessRun:
+                   max_steps: int | None = None, record: Path | None = None,
+                   record_frames: FrameKeeping = "reference") -> InProcessRun:
     """Run the scenario to its end (or its first ``max_steps`` control periods); ``through_codec`` also encodes and
     decodes every message, as the bus does; ``record``: a file to record the flight software's inputs and outputs
-    into, as the OBSW node does (``contracts.steplog``; ``flyby replay`` reads it)."""
+    into, as the OBSW node does (``contracts.steplog``; ``flyby replay`` reads it), with the scenario and, for each
+    frame kept by reference (``record_frames``), the truth it was rendered with: the record replays on its own."""
     sim = compose.universe(scenario)
     keys = KeyRing.derived(scenario.seed)  # fixed by the seed: an in-process uplink is reproduced byte for byte
     fsw = compose.flight_software(scenario, keys)
     ground = compose.ground_segment(scenario, timeline, keys)
     out = InProcessRun()
     writer = None if record is None else StepLogWriter(
-        record, {"scenario": scenario.name, "seed": scenario.seed, "obsw": fsw.cfg.model_dump(mode="json")})
+        record, {"scenario": scenario.model_dump(mode="json"), "obsw": fsw.cfg.model_dump(mode="json"),
+                 "tc_keys": "derived from the seed"}, frames=record_frames)
+    fsw.security.keep_verdicts = writer is not None
     try:
         _loop(sim, fsw, ground, out, through_codec, on_step, max_steps, writer)
         out.uploads = list(ground.uploads)
@@ -89,7 +93,9 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
         if through_codec:
             reply, _ = decode(StepReply, encode(reply))
         if writer is not None:
-            writer.step(request, blob if frame is not None else b"", reply)
+            # the universe has not advanced yet: its time and state are those the frame was rendered with
+            truth = None if frame is None else FrameTruth.of(sim.t_s, sim.state.q, sim.state.omega_rad_s)
+            writer.step(request, blob if frame is not None else b"", reply, truth, fsw.security.take_verdicts())
         if on_step is not None:
             on_step(request, reply, frame)
         out.log += [f"universe: {x}" for x in sim.take_log()] + [f"obsw: {x}" for x in fsw.take_log()]

@@ -34,6 +34,7 @@ from contracts.errors import DecodeError
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_INTERRUPTED, EXIT_OK, EXIT_PEER
 from contracts.messages import Shutdown, Status, decode
 from contracts.runtime import Attachment
+from contracts.steplog import FrameKeeping
 from scenario.model import Scenario
 
 
@@ -74,15 +75,18 @@ def endpoints(ports: dict[str, int], secured: bool) -> dict[str, str]:
 
 
 def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], realtime: bool,
-                  log_level: str, credentials: Path | None, python: str = sys.executable) -> dict[str, list[str]]:
+                  log_level: str, credentials: Path | None, python: str = sys.executable,
+                  record_frames: FrameKeeping = "reference") -> dict[str, list[str]]:
     """The command line of each node: universe listens, obsw connects to it, ground connects to both; over TLS with
-    the identities in ``credentials``, or plain TCP when None."""
+    the identities in ``credentials``, or plain TCP when None; the OBSW's step record keeps camera frames as
+    ``record_frames`` says."""
     ep = endpoints(ports, credentials is not None)
     security = ["--credentials", str(credentials)] if credentials is not None else ["--insecure"]
     common = ["--config", str(config), "--run-id", run_id, "--out", str(out), "--log-level", log_level, *security]
     return {
         "universe": [python, "-m", "universe", *common, "--listen", ep["universe"], *(["--realtime"] if realtime else [])],
-        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"]],
+        "obsw": [python, "-m", "obsw", *common, "--listen", ep["obsw"], "--connect", ep["universe"],
+                 "--record-frames", record_frames],
         "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
                    "--connect", ep["obsw"]],
     }
@@ -101,26 +105,26 @@ def _progress_line(watch: Watch, end_s: float) -> str:
 
 def launch(config: Path, scenario: Scenario, out: Path | None = None, realtime: bool = False,
            log_level: str = "INFO", stream: IO[str] = sys.stdout, insecure: bool = False,
-           tc_keys: Path | None = None) -> int:
+           tc_keys: Path | None = None, record_frames: FrameKeeping = "reference") -> int:
     """Run the scenario with the three nodes as local processes; return an exit code (0 = success).
 
     The bus is secured with fresh credentials (and ``tc_keys``, a TC key file, instead of fresh TC keys) unless
-    ``insecure``."""
+    ``insecure``; ``record_frames``: how the OBSW's step record keeps camera frames (``contracts.steplog``)."""
     if insecure:
         with run_credentials(tc_keys) as credentials:  # the TCs stay authenticated even on a plain bus
-            return _launch(config, scenario, out, realtime, log_level, stream, None, credentials)
+            return _launch(config, scenario, out, realtime, log_level, stream, None, credentials, record_frames)
     with run_credentials(tc_keys) as credentials:
-        return _launch(config, scenario, out, realtime, log_level, stream, credentials, credentials)
+        return _launch(config, scenario, out, realtime, log_level, stream, credentials, credentials, record_frames)
 
 
 def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, log_level: str, stream: IO[str],
-            credentials: Path | None, key_folder: Path) -> int:
+            credentials: Path | None, key_folder: Path, record_frames: FrameKeeping = "reference") -> int:
     folder = run_folder(scenario, out)
     shutil.copyfile(config, folder / "scenario.yaml")
     run_id = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{folder.name}-{os.getpid()}")
     keys = Keys(run_id)
     ports = {n: free_tcp_port() for n in NODES}
-    cmds = node_commands(config, run_id, folder, ports, realtime, log_level, credentials)
+    cmds = node_commands(config, run_id, folder, ports, realtime, log_level, credentials, record_frames=record_frames)
     for node in ("obsw", "ground"):
         cmds[node] += ["--tc-keys", str(key_folder / TC_KEY_FILE)]
     ep = endpoints(ports, credentials is not None)

@@ -18,7 +18,7 @@ from contracts import sdls
 from contracts.bus import EndpointError, Keys, TlsIdentity, access_control, session_config
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG
-from contracts.steplog import STEP_RECORD
+from contracts.steplog import FRAME_KEEPING, STEP_RECORD
 from flyby.credentials import TC_KEY_FILE
 from scenario import compose
 from scenario.model import Scenario, load_run_inputs
@@ -50,8 +50,8 @@ def _start(node: str, conf, scenario: Scenario, args: argparse.Namespace) -> int
         from obsw.node import main as obsw_main
 
         return obsw_main(conf, compose.flight_software(scenario, args.keys), scenario.bus, args.run_id,
-                         record=args.out / STEP_RECORD,
-                         record_header={"scenario": scenario.name, "seed": scenario.seed})
+                         record=args.out / STEP_RECORD, record_header={"scenario": scenario.model_dump(mode="json")},
+                         record_frames=args.record_frames)
     if node == "universe":
         from universe.node import main as universe_main
 
@@ -99,6 +99,9 @@ def node_main(node: str, argv: Sequence[str] | None = None) -> int:
     p.add_argument("--run-id", default="default", help="run identifier shared by the three nodes")
     p.add_argument("--out", type=Path, default=Path("."), help="folder for this node's outputs")
     p.add_argument("--realtime", action="store_true", help="pace the universe to the wall clock")
+    p.add_argument("--record-frames", choices=FRAME_KEEPING, default=FRAME_KEEPING[0],
+                   help="how the OBSW node's step record keeps camera frames: by reference (a digest; the replay "
+                   "renders them again) or raw (the pixels, about 0.55 MB a frame)")
     p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
     p.add_argument("--credentials", type=Path, default=None, metavar="DIR",
                    help="folder with ca.pem and this node's certificate and key (flyby credentials makes one): the "

@@ -5,6 +5,9 @@ The regression check of a flight-software change against recorded flybys (nomina
 an unchanged build gives the same replies, bit for bit; a changed one gets a diff by packet type, parameter and time
 (first divergence, largest difference) as text and as an HTML page. ``--set obsw.PATH=VALUE`` replays with a
 changed on-board configuration instead (a gain, a threshold), without editing any file.
+
+Camera frames kept by reference (the default) are rendered again from the recorded scenario and the truth at their
+exposure (``flyby.recorded_frames``) and checked against their recorded digests; raw ones are read from the record.
 """
 
 from __future__ import annotations
@@ -13,6 +16,7 @@ import argparse
 import html
 import io
 import sys
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,10 +28,15 @@ from pydantic import ValidationError
 
 from analysis.page import _CSS, _table
 from analysis.stepdiff import StepDiff
+from contracts import sdls
+from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG, EXIT_OK
 from contracts.steplog import STEP_RECORD, StepLog, StepLogError
+from flyby.recorded_frames import FrameMismatch, RecordedFrames, RecordedFramesError
 from obsw.config import ObswConfig
 from obsw.software import FlightSoftware
+from obsw.tc_security import COUNTER_MAX, TcSecurity
+from scenario.model import Scenario, load_scenario
 
 
 class ReplayInputError(ValueError):
@@ -46,9 +55,11 @@ class Replay:
     recorded_torque_nm: list[tuple[float, ...]] = field(default_factory=list)
     replayed_torque_nm: list[tuple[float, ...]] = field(default_factory=list)
     replayed_steps: int = 0
+    rendered_frames: int = 0  # frames kept by reference, rendered again and found identical
     unanswered_steps: int = 0  # recorded requests whose reply the record lacks (a run cut short)
     truncated: bool = False
     crash: str | None = None  # the flight software raised: where and what
+    authentication: str = ""  # how uplinked telecommands were authenticated in the replay
 
     @property
     def identical(self) -> bool:
@@ -86,19 +97,66 @@ def changed_config(recorded: dict[str, Any], changes: Sequence[str]) -> ObswConf
         raise ReplayInputError(f"obsw.{where}: {e['msg']}") from None
 
 
-def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = ()) -> Replay:
+class RecordedSecurity(TcSecurity):
+    """The telecommand authentication of a replay without the run's keys (they are never kept): each check returns
+    the recorded outcome of the same check, in order, after making sure the unit is the one recorded."""
+
+    def __init__(self) -> None:
+        super().__init__(None)
+        self.pending: deque[bytes | sdls.SecurityRejection] = deque()
+
+    def check(self, unit: bytes) -> bytes:
+        """The recorded outcome of the next check (the TC passed, or its rejection, counted as on board)."""
+        if not self.pending:
+            raise ReplayInputError(f"the replayed software checks an uplinked unit of {len(unit)} octets that the "
+                                   "recording has no authentication outcome for")
+        verdict = self.pending.popleft()
+        if isinstance(verdict, sdls.SecurityRejection):
+            self.rejected[verdict.failure_code] = min(self.rejected[verdict.failure_code] + 1, COUNTER_MAX)
+            raise verdict
+        if verdict not in unit:  # the unit is the TC packet between its security header and MAC
+            raise ReplayInputError("an uplinked unit does not carry the TC packet its recorded check passed")
+        return verdict
+
+    def install(self, spi: int, wrapped_key: bytes) -> None:
+        """Rekeying needs the keys; the recorded outcomes already carry its effect."""
+
+
+def replay_security(header: dict[str, Any], keys: sdls.KeyRing | None) -> tuple[TcSecurity, str]:
+    """The authentication a replay runs with, and how it was chosen: ``keys`` if given, the keys an in-process run
+    derives from its seed, else the recorded outcomes of every check."""
+    if keys is not None:
+        return TcSecurity(keys), "the given key file"
+    seed = (header.get("scenario") or {}).get("seed")
+    if header.get("tc_keys") == "derived from the seed" and isinstance(seed, int):
+        return TcSecurity(sdls.KeyRing.derived(seed)), "the keys derived from the seed (an in-process run)"
+    return RecordedSecurity(), "the recorded outcomes of the checks (the run's keys are not kept)"
+
+
+def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = (),
+           scenario: Scenario | None = None, keys: sdls.KeyRing | None = None) -> Replay:
     """Replay a run's record (``run``: its folder or the record file) through ``FlightSoftware``, built from
-    ``obsw`` if given, else from the recorded configuration with ``changes`` applied."""
+    ``obsw`` if given, else from the recorded configuration with ``changes`` applied; frames kept by reference are
+    rendered from ``scenario`` if given, else from the recorded one. Raises FrameMismatch at the first frame that
+    renders differently from the recorded one, RecordedFramesError if one cannot be rendered."""
     path = record_path(run)
     log = StepLog(path)
     if obsw is None:
         obsw = changed_config(log.header.get("obsw", {}), changes)
     fsw = FlightSoftware(obsw)
+    fsw.security, how = replay_security(log.header, keys)
+    frames = RecordedFrames(path, log.header, scenario)
     out = Replay(path, log.header, list(changes), StepDiff())
-    for st in log.steps():
+    out.authentication = how
+    for st, frame in frames.with_pixels(log.steps()):
         req = st.request
+        if isinstance(fsw.security, RecordedSecurity):
+            fsw.security.pending.extend(st.verdicts)
+        out.rendered_frames += st.frame_digest is not None
         try:
-            reply = fsw.step(req, st.frame)
+            reply = fsw.step(req, frame)
+        except ReplayInputError:  # the record does not fit the replay: unusable input, not a finding
+            raise
         except Exception as exc:  # noqa: BLE001 - a changed build that raises is a finding, reported as one
             out.crash = (f"step {req.step}, OBT {req.obt_s:.3f} s: the flight software raised "
                          f"{type(exc).__name__}: {exc}")
@@ -119,10 +177,17 @@ def replay(run: Path, obsw: ObswConfig | None = None, changes: Sequence[str] = (
 def summary_lines(r: Replay) -> list[str]:
     """What the replay found, as printed and at the top of the text and HTML files."""
     h = r.header
-    what = f"scenario {h.get('scenario', '?')}, seed {h.get('seed', '?')}"
+    sc = h.get("scenario")  # format 1 recorded the scenario's name and seed, format 2 the whole scenario
+    name, seed = (sc.get("name", "?"), sc.get("seed", "?")) if isinstance(sc, dict) else (sc or "?", h.get("seed", "?"))
     build = "the flight software as installed now" + (f", with {', '.join(r.changes)}" if r.changes else "")
     span = f"OBT {r.obt_s[0]:.3f}..{r.obt_s[-1]:.3f} s" if r.obt_s else "no step"
-    lines = [f"replay of {r.record} ({what}): {r.replayed_steps} control periods ({span}) through {build}"]
+    lines = [f"replay of {r.record} (scenario {name}, seed {seed}): {r.replayed_steps} control periods ({span}) "
+             f"through {build}"]
+    if r.authentication:
+        lines.append(f"telecommand authentication: {r.authentication}")
+    if r.rendered_frames:
+        lines.append(f"{r.rendered_frames} camera frames kept by reference rendered again, each identical to the "
+                     "recorded one (BLAKE2b-64 of its pixels)")
     if r.truncated or r.unanswered_steps:
         lines.append(f"the record ends early: {r.unanswered_steps} request(s) without a recorded reply"
                      + (", the file cut inside a record" if r.truncated else ""))
@@ -210,10 +275,23 @@ def html_report(r: Replay) -> str:
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
-    """Replay a run, print the finding, write replay.txt and replay.html; exit 0 identical, 4 different."""
+    """Replay a run, print the finding, write replay.txt and replay.html; exit 0 identical, 4 different, 2 no
+    usable record or a frame that renders differently from the recorded one."""
     try:
-        result = replay(args.run, changes=args.set)
-    except (StepLogError, ReplayInputError) as exc:
+        scenario = None if args.scenario is None else load_scenario(args.scenario)
+    except ScenarioError as err:
+        print(f"flyby replay: {err.source}: invalid scenario", file=sys.stderr)
+        for line in err.problems:
+            print(f"  {line}", file=sys.stderr)
+        return EXIT_CONFIG
+    try:
+        keys = None if args.keys is None else sdls.load_key_file(args.keys)
+    except sdls.KeyFileError as exc:
+        print(f"flyby replay: --keys: {exc}", file=sys.stderr)
+        return EXIT_CONFIG
+    try:
+        result = replay(args.run, changes=args.set, scenario=scenario, keys=keys)
+    except (StepLogError, ReplayInputError, RecordedFramesError, FrameMismatch) as exc:
         print(f"flyby replay: {exc}", file=sys.stderr)
         return EXIT_CONFIG
     text = text_report(result)
@@ -229,9 +307,16 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     """Register ``flyby replay`` on the CLI's sub-parsers."""
     p = sub.add_parser("replay", help="replay a recorded run through the flight software as installed now and diff "
-                       "its torques and telemetry (exit 0 identical, 4 different)", description=__doc__)
+                       "its torques and telemetry (exit 0 identical, 4 different, 2 unusable record or a frame "
+                       "that renders differently)", description=__doc__)
     p.add_argument("run", type=Path, help=f"run folder (with its {STEP_RECORD}) or the record file")
     p.add_argument("--set", action="append", default=[], metavar="PATH=VALUE",
                    help="replay with this on-board setting changed, e.g. control.kp_nm_per_rad=0.3 (repeatable)")
+    p.add_argument("--scenario", type=Path, default=None, metavar="FILE",
+                   help="render the frames the record keeps by reference from this scenario instead of the recorded "
+                   "one (a recorded scenario this build no longer reads)")
+    p.add_argument("--keys", type=Path, default=None, metavar="FILE",
+                   help="the run's telecommand key file (flyby run --keys FILE): authenticate the uplink for real "
+                   "instead of taking the recorded outcomes of the checks")
     p.add_argument("--out", type=Path, default=None, help="folder for replay.txt and replay.html (default RUN/replay)")
     p.set_defaults(func=cmd_replay)

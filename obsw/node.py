@@ -18,7 +18,7 @@ from contracts.clock import WallClock
 from contracts.errors import NodeFailure
 from contracts.messages import StepReply, StepRequest
 from contracts.runtime import Attachment
-from contracts.steplog import StepLogWriter
+from contracts.steplog import FrameKeeping, StepLogWriter
 from obsw.software import FlightSoftware
 
 log = logging.getLogger("obsw")
@@ -70,7 +70,7 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig, record: StepLo
             req = req.model_copy(update={"frame": None})
         reply = fsw.step(req, frame)
         if record is not None:
-            record.step(req, got.blob if frame is not None else b"", reply)
+            record.step(req, got.blob if frame is not None else b"", reply, verdicts=fsw.security.take_verdicts())
         for line in fsw.take_log():
             log.info("%s", line)
         bus.sim_time_s = req.obt_s
@@ -83,16 +83,19 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig, record: StepLo
 
 
 def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: str, record: Path | None = None,
-         record_header: dict[str, object] | None = None) -> int:
+         record_header: dict[str, object] | None = None, record_frames: FrameKeeping = "reference") -> int:
     """Run the OBSW node until the run ends or a peer fails; return the process exit code.
 
     ``record``: the file to record the software's inputs and outputs into (``contracts.steplog``), written by a
-    thread of its own; ``record_header`` adds facts of the run to it (the configuration is always there).
+    thread of its own, camera frames kept by reference or raw (``record_frames``); ``record_header`` adds facts of
+    the run to it (the configuration is always there).
     """
     keys = Keys(run_id)
     writer = None
     if record is not None:
-        writer = StepLogWriter(record, {**(record_header or {}), "obsw": fsw.cfg.model_dump(mode="json")})
+        writer = StepLogWriter(record, {**(record_header or {}), "obsw": fsw.cfg.model_dump(mode="json")},
+                               frames=record_frames)
+        fsw.security.keep_verdicts = True
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "obsw", WallClock(), log)
         bus.subscribe(keys.step, StepRequest)

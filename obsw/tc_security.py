@@ -13,16 +13,28 @@ class TcSecurity:
 
     def __init__(self, keys: sdls.KeyRing | None) -> None:
         self._receiver = sdls.Receiver(keys)
+        self.keep_verdicts = False  # a recorder sets it, then takes each period's outcomes
+        self.verdicts: list[bytes | sdls.SecurityRejection] = []
         self.rejected = {code: 0 for code in (pus.FailureCode.UNAUTHENTICATED, pus.FailureCode.UNKNOWN_SPI,
                                               pus.FailureCode.REPLAYED)}
 
     def check(self, unit: bytes) -> bytes:
         """The TC packet of an authentic, fresh unit; ``sdls.SecurityRejection`` (counted) otherwise."""
         try:
-            return self._receiver.check(unit)
+            packet = self._receiver.check(unit)
         except sdls.SecurityRejection as rej:
             self.rejected[rej.failure_code] = min(self.rejected[rej.failure_code] + 1, COUNTER_MAX)
+            if self.keep_verdicts:
+                self.verdicts.append(rej)
             raise
+        if self.keep_verdicts:
+            self.verdicts.append(packet)
+        return packet
+
+    def take_verdicts(self) -> list[bytes | sdls.SecurityRejection]:
+        """The outcomes of the checks since the last call, in order: the TC packet passed, or the rejection."""
+        out, self.verdicts = self.verdicts, []
+        return out
 
     def install(self, spi: int, wrapped_key: bytes) -> None:
         """Load association ``spi`` from a rekeying TC, its key wrapped under the association that authenticated it;

@@ -485,14 +485,25 @@ class FaultConfig(Config):
         return out
 
 
+MAX_HISTORY_REPORTS = 100_000  # a ten-day approach at one report a minute is 14,400
+
+
 class ApproachHistoryConfig(Config):
     """Time reports the spacecraft sent during the approach before the run (ground's correlation history)."""
 
     duration_s: float = Field(
-        0.0, ge=0, description="length of the approach before the run start covered by time reports, s (0: none; "
-        "the paper's approach is about ten days, 864000 s)"
+        0.0, ge=0, le=31_557_600.0, description="length of the approach before the run start covered by time reports, "
+        "s (0: none; the paper's approach is about ten days, 864000 s; at most a year)"
     )
     report_period_s: float = Field(600.0, gt=0, description="time between two time reports of the history, true s")
+
+    @model_validator(mode="after")
+    def _reports_held(self) -> ApproachHistoryConfig:
+        n = self.duration_s / self.report_period_s
+        if n > MAX_HISTORY_REPORTS:
+            raise ValueError(f"report_period_s: {n:.3g} time reports over {self.duration_s:g} s; at most "
+                             f"{MAX_HISTORY_REPORTS} (ground fits the last few hundred: a longer period loses nothing)")
+        return self
 
 
 class CentroidModelConfig(Config):

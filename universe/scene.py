@@ -17,6 +17,7 @@ from universe.camera import Body, Scene, project_inertial, render_frame
 from universe.shapes import ShapeModel
 
 if TYPE_CHECKING:
+    from universe.dynamics import AttitudeState
     from universe.simulator import Universe
 
 DIDYMOS_ROTATION_PERIOD_S = 2.26 * 3600.0  # Pravec et al. 2006
@@ -28,10 +29,11 @@ def body_shapes(seed: int) -> tuple[ShapeModel, ShapeModel]:
             ShapeModel(seed=2 * seed + 2, axis_ratios=(1.12, 1.0, 0.88)))
 
 
-def scene_at(u: Universe, exposure_s: float) -> Scene:
-    """The camera scene at the universe's current true time and attitude."""
+def scene_at(u: Universe, exposure_s: float, t_s: float | None = None, state: AttitudeState | None = None) -> Scene:
+    """The camera scene at true time ``t_s`` in attitude state ``state`` (default: the universe's current ones)."""
     g = u.geometry
-    t = u.t_s
+    t = u.t_s if t_s is None else t_s
+    state = u.state if state is None else state
     bodies_cfg = u.cfg.bodies
     n = g.orbit_normal
     spin = Rotation.from_rotvec(n * (2.0 * math.pi * t / DIDYMOS_ROTATION_PERIOD_S))
@@ -47,8 +49,8 @@ def scene_at(u: Universe, exposure_s: float) -> Scene:
         brightening *= f.magnitude if f.magnitude is not None else 2.0
     return Scene(
         camera_position_m=g.spacecraft_position_m(t),
-        q_body_to_inertial=u.state.q,
-        body_rate_rad_s=u.state.omega_rad_s,
+        q_body_to_inertial=state.q,
+        body_rate_rad_s=state.omega_rad_s,
         exposure_s=exposure_s,
         bodies=(didymos, dimorphos),
         sun_direction=g.sun_direction(),
@@ -63,12 +65,12 @@ def scene_at(u: Universe, exposure_s: float) -> Scene:
 
 
 def render_at(
-    u: Universe, exposure_s: float
+    u: Universe, exposure_s: float, t_s: float | None = None, state: AttitudeState | None = None
 ) -> tuple[np.ndarray, tuple[float, float] | None, tuple[float, float] | None]:
-    """Render the frame the camera takes now (uint16, values within the bit depth), with the true pinhole
-    (col, row) of the centres of Dimorphos and Didymos in it (None when the centre has no pixel: behind the camera,
-    or so near the image plane that its projection is not a finite number)."""
-    scene = scene_at(u, exposure_s)
+    """Render the frame the camera takes now (or at ``t_s`` in ``state``; uint16, values within the bit depth),
+    with the true pinhole (col, row) of the centres of Dimorphos and Didymos in it (None when the centre has no
+    pixel: behind the camera, or so near the image plane that its projection is not a finite number)."""
+    scene = scene_at(u, exposure_s, t_s, state)
     pixels = render_frame(scene, u.cfg.camera, u.cfg.plume, u.rng["camera"], u.rng["cosmic_rays"])
     return pixels, _pixel(scene, u, 1), _pixel(scene, u, 0)
 

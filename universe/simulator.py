@@ -244,6 +244,17 @@ class Universe:
         self.frame_count += 1
         return meta, b"" if pixels is None else pixels.astype("<u2", copy=False).tobytes()
 
+    def frame_at(self, t_s: float, q: tuple[float, ...], omega_rad_s: tuple[float, ...],
+                 exposure_s: float) -> np.ndarray:
+        """The pixels of a frame exposed at true time ``t_s`` in attitude ``q`` turning at ``omega_rad_s``, rendered
+        as the run renders its frames, the noise being the camera streams' next draws; the universe's own time and
+        state are left as they are. A new universe of a run's scenario, asked in frame order for the time and state
+        its truth records at each frame, gives the run's frames again, bit for bit (a replay of a record that keeps
+        frames by reference)."""
+        state = AttitudeState(q=np.asarray(q, dtype=float), omega_rad_s=np.asarray(omega_rad_s, dtype=float),
+                              wheel_speed_rad_s=self.state.wheel_speed_rad_s)
+        return render_at(self, exposure_s, t_s, state)[0]
+
     def _record_truth(self) -> None:
         ts = self.geometry.truth_sample(self.t_s, self.state.q, self._boresight, self.cfg.camera.fov_deg)
         self._truth.append(TruthRecord(

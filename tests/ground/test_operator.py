@@ -86,7 +86,7 @@ def test_timeline_upload_records_every_row() -> None:
         {"time": "CA-300s", "command": "stop_imaging"},
         {"time": "+5s", "command": "set_mode", "args": {"mode": "STANDBY"}},
     ]}).encode()
-    insert, _ = timeline_request(text, "t.yaml", seg, utc_s=0.0)
+    inserts, _ = timeline_request(text, "t.yaml", seg, utc_s=0.0)
     (up,) = seg.uploads
     ca_obt = seg.correlation.to_obt(seg.nominal_ca_utc_s)
     assert up.utc_s == 0.0
@@ -99,6 +99,6 @@ def test_timeline_upload_records_every_row() -> None:
     assert [r.refused for r in up.rows] == [None, None, None]  # tied to C/A: uploaded, late ones released on arrival
     assert up.rows[0].late is None and up.rows[1].late and up.rows[2].late
     assert "row 2" in up.rows[1].late and "earliest allowed OBT" in up.rows[1].late
-    (acts,) = [i.activities for i in insert]
-    seq_of_offset = {a.ca_offset_s: pus.request_id_of(a.tc_packet).seq_count for a in acts}
+    (insert,) = inserts  # C/A-relative rows only: one mission-subservice insert
+    seq_of_offset = {a.ca_offset_s: pus.request_id_of(a.tc_packet).seq_count for a in insert.activities}
     assert [r.seq_count for r in up.rows] == [seq_of_offset[r.ca_offset_s] for r in up.rows]

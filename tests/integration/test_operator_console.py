@@ -38,11 +38,14 @@ def test_operator_console_on_a_live_run(tmp_path: Path) -> None:
 def test_dry_run_first_keeps_a_refused_timeline_on_the_ground(tmp_path: Path) -> None:
     """--upload-timeline with --dry-run-first rehearses from ground's current UTC; a row already past is predicted
     refused, so nothing is uploaded (exit 4) and the ground node never sees the request."""
-    procs, ep, run_id = start_nodes(tmp_path, DATA / "operator.yaml", realtime=True)
+    creds = tmp_path / "credentials"
+    write_credentials(creds)
+    procs, ep, run_id = start_nodes(tmp_path, DATA / "operator.yaml", realtime=True, credentials=creds)
     past = tmp_path / "past.yaml"
     past.write_text("commands:\n  - {time: CA-300s, command: stop_imaging}\n")
     try:
-        r = flyby("ground", "--connect", ep["ground"], "--run-id", run_id, "--upload-timeline", str(past),
+        r = flyby("ground", "--connect", ep["ground"], "--run-id", run_id, "--credentials", str(creds),
+                  "--upload-timeline", str(past),
                   "--dry-run-first", "--scenario", str(DATA / "operator.yaml"), "--timeout", "60", timeout=240)
         assert r.returncode == 4, r.stdout + r.stderr
         assert "dry run first, from ground's UTC" in r.stdout

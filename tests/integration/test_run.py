@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import hashlib
+import shutil
 import signal
 import subprocess
 import sys
@@ -49,16 +52,57 @@ def test_same_seed_gives_identical_telemetry(short_runs: tuple[Path, Path]) -> N
 
 def test_obsw_record_holds_the_downlink_and_replays(short_runs: tuple[Path, Path]) -> None:
     """The OBSW node's step record holds every period, its replies' packets are the telemetry ground received (in
-    order, byte for byte), and ``flyby replay`` of the run finds it identical (exit 0)."""
+    order, byte for byte), its frames by reference (a digest, no pixels, no truth: the node has none), and
+    ``flyby replay`` of the run renders them again from truth.csv and finds everything identical (exit 0)."""
     run = short_runs[0]
     log = StepLog(run / STEP_RECORD)
     steps = list(log.steps())
     assert not log.truncated and len(steps) == 300 and all(s.reply is not None for s in steps)
-    assert any(s.frame is not None for s in steps)
+    framed = [s for s in steps if s.request.frame is not None]
+    assert framed and all(s.frame is None and s.frame_digest is not None and s.frame_truth is None for s in framed)
+    assert (run / STEP_RECORD).stat().st_size < 400 * len(steps)  # 2 MB of pixels a frame would be 60 kB a period
     sent = b"".join(p for s in steps for p in s.reply.downlink)  # type: ignore[union-attr]
     assert sent == (run / "tm.bin").read_bytes()
     r = flyby("replay", str(run), "--out", str(run / "replay"))
     assert r.returncode == 0 and "IDENTICAL" in r.stdout, r.stdout + r.stderr
+    assert f"{len(framed)} camera frames kept by reference rendered again" in r.stdout
+
+
+def test_raw_record_holds_the_pixels_the_digests_name(short_runs: tuple[Path, Path]) -> None:
+    """The second run recorded its frames raw: the same requests as the first (the telecommands' security envelope
+    aside: each run has fresh keys, so compared by the TC packets the authentication passed), each frame's pixels
+    hashing (BLAKE2b-64, computed here) to the digest the first run recorded; it replays identically without
+    rendering."""
+    ref, raw = (list(StepLog(run / STEP_RECORD).steps()) for run in short_runs)
+    assert [s.request.model_copy(update={"uplink": ()}) for s in ref] == \
+        [s.request.model_copy(update={"uplink": ()}) for s in raw]
+    assert [s.verdicts for s in ref] == [s.verdicts for s in raw] and any(s.verdicts for s in ref)
+    framed = [(a, b) for a, b in zip(ref, raw, strict=True) if a.request.frame is not None]
+    assert framed and all(b.frame is not None and b.frame_digest is None for _, b in framed)
+    assert all(hashlib.blake2b(b.frame.astype("<u2").tobytes(), digest_size=8).digest() == a.frame_digest
+               for a, b in framed)  # type: ignore[union-attr]
+    r = flyby("replay", str(short_runs[1]), "--out", str(short_runs[1] / "replay"))
+    assert r.returncode == 0 and "IDENTICAL" in r.stdout and "rendered again" not in r.stdout, r.stdout + r.stderr
+
+
+def test_replay_stops_at_a_frame_whose_truth_changed(short_runs: tuple[Path, Path], tmp_path: Path) -> None:
+    """A copy of the run whose truth.csv has one frame's body rate changed (1 mrad/s about x): the replay stops at
+    that frame, naming it, exit 2; the frames before it rendered as recorded."""
+    run = tmp_path / "run"
+    shutil.copytree(short_runs[0], run, ignore=shutil.ignore_patterns("replay"))
+    with open(run / "truth.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    head = rows[0]
+    framed = [r for r in rows[1:] if r[head.index("frame_id")]]
+    assert len(framed) >= 3
+    row = framed[2]
+    row[head.index("omega_x_rad_s")] = repr(float(row[head.index("omega_x_rad_s")]) + 1e-3)
+    with open(run / "truth.csv", "w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    r = flyby("replay", str(run))
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert f"frame {row[head.index('frame_id')]} (step " in r.stderr
+    assert "the universe or the scenario changed" in r.stderr
 
 
 def test_killed_node_stops_the_others(tmp_path: Path) -> None:

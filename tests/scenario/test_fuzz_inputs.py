@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from tests.scenario.mutations import mutated_texts, outcome
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(texts=mutated_texts())
 def test_a_mutated_input_is_refused_with_a_path_or_runs(texts: tuple[bytes, bytes, str]) -> None:
     """Whatever the mutation, the outcome is a clean refusal naming fields, or a run that goes through."""

@@ -151,7 +151,7 @@ def _yaml_problems(rows: str) -> list[str]:
         ),
         ("  - {time: CA, command: start_imaging, args: {period_s: -1}}\n", "row 1, field 'args.period_s': must be > 0"),
         ("  - {time: CA, command: start_imaging, args: {period_s: fast}}\n",
-         "row 1, field 'args.period_s': Input should be a valid number"),
+         "row 1, field 'args.period_s': must be a number, got 'fast' (str)"),
         ("  - {time: CA, command: set_mode}\n", "row 1, field 'args.mode': missing"),
         ("  - {time: CA, command: set_mode, args: {mode: WARP}}\n", "row 1, field 'args.mode': Input should be 'SAFE'"),
         ("  - {time: CA, command: stop_imaging, args: {period_s: 1}}\n",
