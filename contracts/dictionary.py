@@ -27,9 +27,10 @@ from collections.abc import Iterable
 from enum import IntEnum
 from typing import Annotated, Any, ClassVar
 
-from pydantic import AfterValidator, BeforeValidator, PlainSerializer, model_validator
+from pydantic import AfterValidator, model_validator
 
 from contracts.mode import Mode  # noqa: F401  (re-exported: the packets' mode field)
+from contracts.model import named_enum
 from contracts.packet import (
     Constant,
     Count,
@@ -201,24 +202,13 @@ class FrameAnomaly(IntEnum):
     SATURATED = 3  # most of the frame at full scale
 
 
-def _by_name(enum: type[IntEnum]) -> Any:
-    """An enum field that accepts a member's name as well as its code, and serialises to the name in JSON."""
-    def parse(value: Any) -> Any:
-        if isinstance(value, str) and not isinstance(value, enum):
-            if value in enum.__members__:
-                return enum[value]
-            raise ValueError(f"Input should be one of {', '.join(repr(m) for m in enum.__members__)}, got {value!r}")
-        return value
-    return Annotated[enum, BeforeValidator(parse), PlainSerializer(lambda m: m.name, when_used="json")]
-
-
-Parameter16 = Annotated[_by_name(Parameter), EnumCode(Parameter, UINT16)]
-CheckType8 = Annotated[_by_name(CheckType), EnumCode(CheckType, UINT8)]
-CheckStatus8 = Annotated[_by_name(CheckStatus), EnumCode(CheckStatus, UINT8)]
-Severity8 = Annotated[_by_name(Severity), EnumCode(Severity, UINT8)]
-EventId16 = Annotated[_by_name(EventId), EnumCode(EventId, UINT16)]
-FrameAnomaly8 = Annotated[_by_name(FrameAnomaly), EnumCode(FrameAnomaly, UINT8)]
-FaultCode16 = Annotated[_by_name(FaultCode), EnumCode(FaultCode, UINT16)]
+Parameter16 = Annotated[named_enum(Parameter), EnumCode(Parameter, UINT16)]
+CheckType8 = Annotated[named_enum(CheckType), EnumCode(CheckType, UINT8)]
+CheckStatus8 = Annotated[named_enum(CheckStatus), EnumCode(CheckStatus, UINT8)]
+Severity8 = Annotated[named_enum(Severity), EnumCode(Severity, UINT8)]
+EventId16 = Annotated[named_enum(EventId), EnumCode(EventId, UINT16)]
+FrameAnomaly8 = Annotated[named_enum(FrameAnomaly), EnumCode(FrameAnomaly, UINT8)]
+FaultCode16 = Annotated[named_enum(FaultCode), EnumCode(FaultCode, UINT16)]
 
 
 # Service 17 ---------------------------------------------------------------------------------------------
