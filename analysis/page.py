@@ -119,7 +119,7 @@ def counts_section(data: RunData, figs: RunFigures) -> Section:
         rows += [("packets archived", c.get("stored", 0)), ("undecodable", c.get("undecodable", 0)),
                  ("sequence gaps", c.get("gaps", 0)), ("packets missing in gaps", c.get("missing", 0)),
                  ("duplicates / late", f"{c.get('duplicates', 0)} / {c.get('late', 0)}"),
-                 ("security alarms (ground's log and summary say which)", c.get("alarms", 0))]
+                 ("alarms (ground's log and summary say which)", c.get("alarms", 0))]
     elif tm is not None:
         s.missing.append("no archive.sqlite: counts from the packet stream, no sequence-gap analysis")
         rows += [("packets in " + tm.source, tm.packets), ("undecodable", tm.undecodable)]

@@ -30,6 +30,7 @@ from typing import Annotated, Any, ClassVar
 from pydantic import AfterValidator, model_validator
 
 from contracts.mode import Mode  # noqa: F401  (re-exported: the packets' mode field)
+from contracts.model import named_enum
 from contracts.packet import (
     Constant,
     Count,
@@ -54,6 +55,7 @@ from contracts.wire import (
     U32,
     UINT16,
     UINT8,
+    EnumCode,
     EmbeddedPacket,
     Finite,
     OctetString,
@@ -67,7 +69,8 @@ from contracts.wire import (
 )
 
 SERVICE_NAMES = {1: "request verification", 3: "housekeeping", 5: "event reporting", 9: "time management",
-                 11: "time-based scheduling", 17: "test", 200: "mission: flyby navigation"}
+                 11: "time-based scheduling", 12: "on-board monitoring", 17: "test", 19: "event-action",
+                 200: "mission: flyby navigation"}
 """The PUS services of the mission (ECSS-E-ST-70-41C names; 200 is the mission's own)."""
 HK_SID = 1
 HK_WHEEL_SLOTS = 4
@@ -131,6 +134,81 @@ class EventId(IntEnum):
     SECURITY_REJECTION = 8
     TASK_OVERRUN = 9
     FRAME_OVERRUN = 10
+    PARAMETER_CHECK = 11
+    WHEEL_FAILED = 12
+    WHEEL_SET = 13
+    STAR_TRACKER = 14
+    FRAME_ANOMALY = 15
+    FALSE_LOCK = 16
+    UPLINK_GAP = 17
+    LATE_RELEASE = 18
+    TIME_SHIFTED = 19
+
+
+class Parameter(IntEnum):
+    """The on-board parameters that service 12 can monitor, each a housekeeping value (norms of vectors)."""
+
+    MODE = 1  # mode code
+    BODY_RATE = 2  # |estimated body rate|, rad/s
+    WHEEL_MOMENTUM_0 = 3  # wheel angular momentum, N m s
+    WHEEL_MOMENTUM_1 = 4
+    WHEEL_MOMENTUM_2 = 5
+    WHEEL_MOMENTUM_3 = 6
+    WHEEL_SPEED_0 = 7  # wheel speed, rad/s
+    WHEEL_SPEED_1 = 8
+    WHEEL_SPEED_2 = 9
+    WHEEL_SPEED_3 = 10
+    GYRO_BIAS = 11  # |estimated gyro bias|, rad/s
+    ATTITUDE_SIGMA = 12  # one-sigma attitude uncertainty of the estimator, rad
+    POINTING_ERROR = 13  # estimated boresight-to-target angle, rad (not checked while unknown)
+    TASK_OVERRUNS = 14  # count
+    FRAME_OVERRUNS = 15  # count
+    SKIPPED_RELEASES = 16  # count
+    TC_REJECTED_AUTH = 17  # count
+    FRAMES_DISCARDED = 18  # count
+    MEASUREMENTS_REJECTED = 19  # count
+    EXPOSURE_TO_CENTROID = 20  # from the exposure of the last frame used to its line of sight on board, s
+
+
+class CheckType(IntEnum):
+    """Service 12 check types (ECSS-E-ST-70-41C: limit, expected-value and delta checks)."""
+
+    LIMIT = 1  # low <= value <= high
+    EXPECTED_VALUE = 2  # value == low (high repeats it)
+    DELTA = 3  # low <= value - previous sample <= high
+
+
+class CheckStatus(IntEnum):
+    """The checking status of a monitored parameter (ECSS-E-ST-70-41C service 12)."""
+
+    UNCHECKED = 0  # not yet checked, or the parameter has no value
+    WITHIN = 1  # within limits, as expected, or within the delta thresholds
+    BELOW_LOW = 2  # limit or delta check: below the low limit or threshold
+    ABOVE_HIGH = 3  # limit or delta check: above the high limit or threshold
+    UNEXPECTED = 4  # expected-value check: another value
+
+
+class FaultCode(IntEnum):
+    """The on-board faults a FaultEvent reports (each sends the spacecraft to SAFE)."""
+
+    WHEELS_CANNOT_CONTROL = 1  # the wheels in use cannot torque an axis the mode's attitude control needs
+
+
+class FrameAnomaly(IntEnum):
+    """What is wrong with a camera frame, as image statistics show it (or a frame that never came)."""
+
+    MISSING = 1  # requested, never delivered
+    BLANK = 2  # no light from the scene: nothing above the noise
+    SATURATED = 3  # most of the frame at full scale
+
+
+Parameter16 = Annotated[named_enum(Parameter), EnumCode(Parameter, UINT16)]
+CheckType8 = Annotated[named_enum(CheckType), EnumCode(CheckType, UINT8)]
+CheckStatus8 = Annotated[named_enum(CheckStatus), EnumCode(CheckStatus, UINT8)]
+Severity8 = Annotated[named_enum(Severity), EnumCode(Severity, UINT8)]
+EventId16 = Annotated[named_enum(EventId), EnumCode(EventId, UINT16)]
+FrameAnomaly8 = Annotated[named_enum(FrameAnomaly), EnumCode(FrameAnomaly, UINT8)]
+FaultCode16 = Annotated[named_enum(FaultCode), EnumCode(FaultCode, UINT16)]
 
 
 # Service 17 ---------------------------------------------------------------------------------------------
@@ -235,6 +313,15 @@ class Housekeeping(Report, service=3, subtype=25):
                                 default=0)
     skipped_releases: U32 = field("task releases skipped because the processor was busy past the slot's deadline, "
                                   "since start", default=0)
+    gyro_bias_rad_s: tuple[F32, F32, F32] = field("gyro bias estimated by the attitude estimator, body x y z",
+                                                   "rad/s", default=(0.0, 0.0, 0.0))
+    attitude_sigma_rad: F32 = field("one-sigma attitude uncertainty of the estimator (largest axis)", "rad",
+                                    default=0.0, ge=0)
+    wheels_in_use: U8 = field("mask of the wheels the control allocates torque to (bit k: wheel k)", default=0)
+    wheels_failed: U8 = field("mask of the wheels FDIR has found failed (bit k: wheel k)", default=0)
+    frames_discarded: U16 = field("camera frames missing, blank or saturated, since start (saturates)", default=0)
+    measurements_rejected: U16 = field("lines of sight refused by the gate against the recognised trajectory, since "
+                                       "start (saturates)", default=0)
 
     @model_validator(mode="after")
     def _consistent(self) -> Housekeeping:
@@ -316,11 +403,11 @@ class WheelSaturationEvent(EventReport):
 
 
 class FaultEvent(EventReport):
-    """An on-board fault was detected."""
+    """An on-board fault was detected; the spacecraft goes to SAFE."""
 
     EVENT_ID: ClassVar[EventId] = EventId.FAULT
     severity: Severity = _severity(Severity.HIGH)
-    fault_code: U16 = field("OBSW-defined fault code")
+    fault_code: FaultCode16 = field("what failed (the fault code)")
     reason: Text = field("what failed", default="")
 
 
@@ -371,6 +458,107 @@ class TcSecurityRejectedEvent(EventReport):
     spi: U16 = field("security parameter index the TC named (0 when too short to hold one)")
     arsn: U32 = field("anti-replay sequence number the TC carried (0 when too short to hold one)")
     failure_code: U16 = field("service 1 failure code of the rejection")
+
+
+class ParameterCheckEvent(EventReport):
+    """A monitored parameter changed its checking status (service 12 check transition); the severity is the
+    monitoring definition's."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.PARAMETER_CHECK
+    severity: Severity = _severity(Severity.MEDIUM)
+    pmon_id: U16 = field("the parameter monitoring definition")
+    parameter: Parameter16 = field("the monitored parameter")
+    previous_status: CheckStatus8 = field("checking status before the transition")
+    status: CheckStatus8 = field("checking status after the transition")
+    value: Finite = field("the parameter's value (its change since the previous sample, for a delta check)")
+    limit: Finite = field("the limit, threshold or expected value crossed (the one left, back within)")
+
+
+class WheelFailedEvent(EventReport):
+    """A reaction wheel does not follow its torque commands: its measured momentum change is far from the commanded
+    impulse over the detection window (a failed or stuck wheel)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.WHEEL_FAILED
+    severity: Severity = _severity(Severity.HIGH)
+    wheel: U8 = field("wheel index")
+    commanded_nms: F32 = field("impulse commanded to the wheel over the window", "N m s")
+    measured_nms: F32 = field("measured change of the wheel's momentum over the window", "N m s")
+
+
+class WheelSetEvent(EventReport):
+    """The control changed the set of wheels it allocates torque to."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.WHEEL_SET
+    severity: Severity = _severity(Severity.MEDIUM)
+    wheels_in_use: U8 = field("mask of the wheels now in use (bit k: wheel k)")
+    wheels_failed: U8 = field("mask of the wheels FDIR has found failed")
+    controllable_axes: U8 = field("body axes the wheels in use can torque (bit 0 x, 1 y, 2 z)")
+
+
+class StarTrackerEvent(EventReport):
+    """The star tracker stopped giving attitudes (outage declared: the attitude is propagated with the gyro and the
+    estimated bias), or gave them again."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.STAR_TRACKER
+    severity: Severity = _severity(Severity.MEDIUM)
+    available: U8 = field("0: outage declared, 1: attitudes again", le=1)
+    outage_s: F32 = field("how long the outage has lasted (0 when declared)", "s", ge=0)
+    attitude_sigma_rad: F32 = field("one-sigma attitude uncertainty of the estimator now", "rad", ge=0)
+
+
+class FrameAnomalyEvent(EventReport):
+    """A camera frame was missing, blank or saturated and was discarded; raised on the first of a run of such frames
+    (the housekeeping counts every one)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.FRAME_ANOMALY
+    severity: Severity = _severity(Severity.MEDIUM)
+    anomaly: FrameAnomaly8 = field("what was wrong")
+    frame_id: U32 = field("the frame (for a missing one: the last frame received)")
+    statistic: F32 = field("what showed it: the saturated fraction, the peak above the background in 8-bit DN, or "
+                           "how long the frame is overdue in s")
+
+
+class FalseLockEvent(EventReport):
+    """The imaging chain's Dimorphos is farther from the recognised trajectory's prediction than the gate: a false
+    lock (plume, a star, a fragment) is suspected and its lines of sight are refused; raised on the first of a run
+    of refusals."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.FALSE_LOCK
+    severity: Severity = _severity(Severity.MEDIUM)
+    frame_id: U32 = field("the frame")
+    offset_rad: F32 = field("angle between the measured and the predicted line of sight", "rad", ge=0)
+    gate_rad: F32 = field("the gate it exceeded", "rad", ge=0)
+
+
+class UplinkGapEvent(EventReport):
+    """Uplinked telecommands were lost: the sequence count of the TC received skips counts of the ground's
+    sequence."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.UPLINK_GAP
+    severity: Severity = _severity(Severity.MEDIUM)
+    expected_seq: U16 = field("sequence count expected next")
+    received_seq: U16 = field("sequence count received")
+    lost: U16 = field("telecommands missing in between")
+
+
+class LateReleaseEvent(EventReport):
+    """A scheduled command was released later than its tag: a C/A-relative command that arrived, or was re-anchored,
+    after its time (it is released at once, not dropped)."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.LATE_RELEASE
+    severity: Severity = _severity(Severity.LOW)
+    request_id: Rid = field("the released TC")
+    late_s: F32 = field("release time minus the tag", "s", ge=0)
+
+
+class TimeShiftedEvent(EventReport):
+    """After an on-board time step, everything held in OBT (schedule tags, trajectories, measurements, histories)
+    was moved by the step, so the physical times they stand for do not move."""
+
+    EVENT_ID: ClassVar[EventId] = EventId.TIME_SHIFTED
+    severity: Severity = _severity(Severity.INFO)
+    step_s: Finite = field("the step applied", "s")
+    schedule_entries: U16 = field("schedule entries moved")
 
 
 # Service 9 ----------------------------------------------------------------------------------------------
@@ -506,6 +694,101 @@ class ScheduleSummaryReport(Report, service=11, subtype=13):
     entries: tuple[ScheduleSummaryEntry, ...] = field("the activities", default=(), max_length=MAX_LIST)
 
 
+# Service 12 ---------------------------------------------------------------------------------------------
+
+
+class MonitoringDefinition(Record):
+    """A parameter monitoring definition (ECSS-E-ST-70-41C service 12): which parameter, which check, its limits,
+    how many consecutive samples confirm a new status, and the severity of the event a transition raises."""
+
+    pmon_id: U16 = field("identifier of the definition", ge=1)
+    parameter: Parameter16 = field("the monitored parameter")
+    check_type: CheckType8 = field("limit, expected-value or delta check")
+    repetition: U8 = field("consecutive samples with the same new status that confirm it", ge=1)
+    low: Finite = field("low limit, expected value, or low delta threshold (per sample)")
+    high: Finite = field("high limit, the expected value again, or high delta threshold (per sample)")
+    severity: Severity8 = field("severity of the check transition event")
+
+    @model_validator(mode="after")
+    def _limits(self) -> MonitoringDefinition:
+        if self.check_type == CheckType.EXPECTED_VALUE and self.high != self.low:
+            raise ValueError(f"high: an expected-value check repeats the expected value {self.low!r} in high, got "
+                             f"{self.high!r}")
+        if self.high < self.low:
+            raise ValueError(f"high: {self.high!r} is below low {self.low!r}")
+        return self
+
+
+_PMON_IDS = "identifiers of parameter monitoring definitions"
+
+
+class EnableParameterMonitoring(Telecommand, service=12, subtype=1):
+    """Enable the named parameter monitoring definitions (their checks start again from UNCHECKED)."""
+
+    pmon_ids: tuple[U16, ...] = field(_PMON_IDS, min_length=1, max_length=MAX_LIST)
+
+
+class DisableParameterMonitoring(Telecommand, service=12, subtype=2):
+    """Disable the named parameter monitoring definitions."""
+
+    pmon_ids: tuple[U16, ...] = field(_PMON_IDS, min_length=1, max_length=MAX_LIST)
+
+
+class AddParameterMonitoringDefinitions(Telecommand, service=12, subtype=5):
+    """Add parameter monitoring definitions (enabled); an identifier already defined is refused."""
+
+    definitions: tuple[MonitoringDefinition, ...] = field("the definitions", min_length=1, max_length=MAX_LIST)
+
+
+class DeleteParameterMonitoringDefinitions(Telecommand, service=12, subtype=6):
+    """Delete the named parameter monitoring definitions."""
+
+    pmon_ids: tuple[U16, ...] = field(_PMON_IDS, min_length=1, max_length=MAX_LIST)
+
+
+class ModifyParameterMonitoringDefinitions(Telecommand, service=12, subtype=7):
+    """Replace existing parameter monitoring definitions (same identifiers); their checks start again."""
+
+    definitions: tuple[MonitoringDefinition, ...] = field("the definitions", min_length=1, max_length=MAX_LIST)
+
+
+# Service 19 ---------------------------------------------------------------------------------------------
+
+
+class EventActionDefinition(Record):
+    """An event-action definition (ECSS-E-ST-70-41C service 19): the telecommand run when an event is reported."""
+
+    event_id: EventId16 = field("the event that triggers the action")
+    tc_packet: TcPacket = field("the complete TC packet run as the action")
+
+
+_EVENT_IDS = "events whose actions are named"
+
+
+class AddEventActions(Telecommand, service=19, subtype=1):
+    """Add event-action definitions (disabled until enabled; one per event)."""
+
+    definitions: tuple[EventActionDefinition, ...] = field("the definitions", min_length=1, max_length=MAX_LIST)
+
+
+class DeleteEventActions(Telecommand, service=19, subtype=2):
+    """Delete the event-action definitions of the named events."""
+
+    event_ids: tuple[EventId16, ...] = field(_EVENT_IDS, min_length=1, max_length=MAX_LIST)
+
+
+class EnableEventActions(Telecommand, service=19, subtype=4):
+    """Enable the event-action definitions of the named events."""
+
+    event_ids: tuple[EventId16, ...] = field(_EVENT_IDS, min_length=1, max_length=MAX_LIST)
+
+
+class DisableEventActions(Telecommand, service=19, subtype=5):
+    """Disable the event-action definitions of the named events."""
+
+    event_ids: tuple[EventId16, ...] = field(_EVENT_IDS, min_length=1, max_length=MAX_LIST)
+
+
 # Service 200 (mission) ----------------------------------------------------------------------------------
 
 
@@ -624,6 +907,15 @@ class LoadBadPixelMap(Telecommand, service=MISSION_SERVICE, subtype=10):
 
     columns: tuple[U16, ...] = field("dead columns", default=(), max_length=MAX_LIST)
     pixels: tuple[BadPixel, ...] = field("bad pixels (column, row)", default=(), max_length=MAX_LIST)
+
+
+class SetWheelSet(Telecommand, service=MISSION_SERVICE, subtype=11,
+                  command=TimelineCommand("set_wheel_set", "choose the reaction wheels the control uses")):
+    """Choose the reaction wheels the control allocates torque to: a mask (bit k: wheel k), or 0 for every wheel FDIR
+    has not found failed. If the mode's attitude control needs an axis the set cannot torque, the spacecraft goes to
+    SAFE."""
+
+    wheels: U8 = field("mask of the wheels to use (bit k: wheel k); 0: every wheel not found failed", le=0x0F)
 
 
 class NavigationReport(Report, service=MISSION_SERVICE, subtype=130):

@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import types
 import typing
+from enum import IntEnum
 from typing import Annotated, Any, get_args, get_origin
 
-from pydantic import BaseModel, ConfigDict, Strict
+from pydantic import BaseModel, BeforeValidator, ConfigDict, PlainSerializer, Strict
 
 
 class Frozen(BaseModel):
@@ -56,3 +57,15 @@ class Config(Frozen):
                 field.annotation, changed = strict, True
         if changed:
             cls.model_rebuild(force=True)
+
+
+def named_enum(enum: type[IntEnum]) -> Any:
+    """An enum field that accepts a member's name as well as its code (an unknown name refused naming the choices),
+    and serialises to the name in JSON."""
+    def parse(value: Any) -> Any:
+        if isinstance(value, str) and not isinstance(value, enum):
+            if value in enum.__members__:
+                return enum[value]
+            raise ValueError(f"Input should be one of {', '.join(repr(m) for m in enum.__members__)}, got {value!r}")
+        return value
+    return Annotated[enum, BeforeValidator(parse), PlainSerializer(lambda m: m.name, when_used="json")]

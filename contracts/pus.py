@@ -54,7 +54,7 @@ from contracts.wire import packet_len as _packet_len
 TM_SECONDARY_HEADER_LEN = 7 + CUC_LEN
 SEQ_COUNT_MODULO = MAX_SEQ_COUNT + 1
 MAX_PACKET_LEN = PRIMARY_HEADER_LEN + 0x10000
-HK_SIZE = sum(it.wire.octets or 0 for it in Housekeeping.LAYOUT)  # a fixed layout: 199 octets
+HK_SIZE = sum(it.wire.octets or 0 for it in Housekeeping.LAYOUT)  # a fixed layout: 221 octets
 
 # Unions of the declared classes, for annotations and isinstance checks.
 TcCommand: TypeAlias = Union[tuple(p for p in DICTIONARY.packets if p.KIND == "TC")]  # type: ignore[valid-type]

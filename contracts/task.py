@@ -7,9 +7,8 @@ the name is how the scenario's schedule table and the logs spell it.
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import Annotated, Any
 
-from pydantic import BeforeValidator, PlainSerializer
+from contracts.model import named_enum
 
 
 class Task(IntEnum):
@@ -31,14 +30,5 @@ class Task(IntEnum):
 TASK_COUNT = len(Task)
 
 
-def task_of(value: Any) -> Any:
-    """Let a task be given by name ('CONTROL') as well as by code; an unknown name is refused naming the choices."""
-    if isinstance(value, str) and not isinstance(value, Task):
-        if value in Task.__members__:
-            return Task[value]
-        raise ValueError(f"Input should be one of {', '.join(repr(t.name) for t in Task)}, got {value!r}")
-    return value
-
-
-TaskValue = Annotated[Task, BeforeValidator(task_of), PlainSerializer(lambda t: t.name, when_used="json")]
+TaskValue = named_enum(Task)
 """A task field: accepts a name or a code, holds a ``Task``, serialises to its name in JSON."""

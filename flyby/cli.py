@@ -186,6 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("run_dir", type=Path)
     rep.set_defaults(func=cmd_report)
     add_tm_arguments(sub.add_parser("tm", help="list, print or export (CSV) archived telemetry parameters of a run"))
+    from flyby.campaign import add_parser as add_campaign
     from flyby.console import add_parser as add_ground_console
     from flyby.montecarlo.cli import add_parser as add_mc
     from flyby.replay import add_parser as add_replay
@@ -193,6 +194,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_ground_console(sub)
     add_mc(sub)
     add_replay(sub)
+    add_campaign(sub)
     return p
 
 

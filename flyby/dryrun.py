@@ -110,6 +110,7 @@ class CommandOutcome:
     refused: str | None  # by ground at upload, by the on-board schedule, or at execution: who and why
     release_obt_s: float | None  # when the on-board schedule released it (None: refused or never released)
     release_utc: str | None
+    late: str | None = None  # ground's warning: tied to C/A and due before it can arrive, released on arrival
 
     @property
     def ok(self) -> bool:
@@ -177,7 +178,7 @@ def _outcomes(rows: Sequence[RowUpload], verifications: list[tuple[float, pus.Ve
         elif refused is None:
             refused = "never released: still in the on-board schedule when the run ended"
         utc = None if release is None else utc_text(epoch_utc, release - oscillator_offset_s)
-        out.append(CommandOutcome(r.row, r.command, r.obt_s, r.ca_offset_s, refused, release, utc))
+        out.append(CommandOutcome(r.row, r.command, r.obt_s, r.ca_offset_s, refused, release, utc, r.late))
     return out
 
 
@@ -268,7 +269,8 @@ def case_lines(r: CaseResult, timeline: Timeline, sc: Scenario, number: str) -> 
         rel = "-" if c.release_obt_s is None else _vs_ca(c.release_obt_s - offset - r.true_ca_utc_s)
         table.append((str(c.row), _command_text(timeline, c.row), tag,
                       "-" if c.release_obt_s is None else f"{c.release_obt_s:.3f}", c.release_utc or "-", rel,
-                      "executed" if c.ok else f"REFUSED: {c.refused}"))
+                      ("executed" + (" LATE: uploaded after its time, released on arrival" if c.late else ""))
+                      if c.ok else f"REFUSED: {c.refused}"))
     width = [max(len(x[i]) for x in table) for i in range(len(table[0]))]
     lines += ["  " + "  ".join(x.ljust(w) for x, w in zip(row, width, strict=True)).rstrip() for row in table]
     path = " -> ".join(f"{to} ({cause}, {_vs_ca(t - offset - r.true_ca_utc_s)})" for t, _, to, cause in r.mode_path)
@@ -283,9 +285,14 @@ def verdict_lines(results: Sequence[CaseResult], timeline: Timeline) -> list[str
     """The dry run's verdict: PASS, or every refused row and failed case named."""
     bad_rows = sorted({c.row for r in results for c in r.commands if not c.ok})
     failed = [r.case.name for r in results if not r.ok]
+    late = sorted({c.row for r in results for c in r.commands if c.late})
+    warnings = [f"  WARNING: row {row} ({_command_text(timeline, row)}) uploaded after its time in "
+                f"{sum(any(c.row == row and c.late for c in r.commands) for r in results)} of {len(results)} cases: "
+                "released on arrival, later than meant" for row in late]
     if not failed:
-        return [f"PASS: every command accepted and executed, every requirement holds, in all {len(results)} cases"]
-    out = ["FAIL:"]
+        return [f"PASS: every command accepted and executed, every requirement holds, in all {len(results)} cases",
+                *warnings]
+    out = ["FAIL:", *warnings]
     for row in bad_rows:
         where = [r.case.name for r in results if any(c.row == row and not c.ok for c in r.commands)]
         out.append(f"  row {row} ({_command_text(timeline, row)}) refused or not executed in {len(where)} of "

@@ -34,6 +34,7 @@ class InProcessRun:
     frames: int = 0
     record_error: str | None = None  # why the step record stopped, if it did
     uploads: list[TimelineUpload] = field(default_factory=list)  # what ground did with each timeline row
+    alarms: list[tuple[float, str]] = field(default_factory=list)  # ground's alarms raised by no packet (UTC s, text)
 
 
 def run_in_process(scenario: Scenario, timeline: Timeline | None = None, through_codec: bool = False,
@@ -73,6 +74,8 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
         out.received += received
         out.truth += gs.truth
         out.log += [f"ground: {x}" for x in lines]
+        out.alarms += ground.take_alarms()
+        out.alarms += ground.take_alarms()
         sim.accept_ground(GroundReply(step=gs.step, uplink=tuple(uplink)))
 
     request, blob = sim.begin()
@@ -105,3 +108,4 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
         out.received += received
         out.truth += gs.truth
         out.log += [f"ground: {x}" for x in lines]
+        out.alarms += ground.take_alarms()

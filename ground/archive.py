@@ -12,8 +12,9 @@ This module is an adapter (it owns the disk); decoding is ``contracts.pus``. Tab
   as NULL (SQLite has no NaN). Indexed on (name, obt_s).
 - ``sequence_anomalies``: per APID, gaps in the 14-bit sequence count (with the number of packets missing),
   duplicates and late (out-of-order) packets.
-- ``alarms``: the ground's security alarms (a report about a TC it never sent, a TC the spacecraft refused), each
-  with its receipt time and the packet that raised it.
+- ``alarms``: the ground's alarms (security: a report about a TC it never sent, a TC the spacecraft refused as
+  unauthentic; an on-board event of medium or high severity; a TC never accepted after its re-sends), each with its
+  receipt time and the packet that raised it (none for a TC never accepted).
 
 Sequence rule: with ``d = (seq - (last + 1)) mod 16384``, ``d == 0`` is in order; ``0 < d < 8192`` is a gap of ``d``
 packets; ``d >= 8192`` is a late or duplicate packet if its OBT is not after the last one's, otherwise a gap of
@@ -267,8 +268,8 @@ class Archive:
         return result
 
     def alarm(self, receipt_utc_s: float, text: str, packet_id: int | None = None) -> None:
-        """Record a security alarm raised at ``receipt_utc_s`` by the packet ``packet_id`` (written at the next
-        flush)."""
+        """Record an alarm raised at ``receipt_utc_s`` by the packet ``packet_id`` (None: by no packet), written at the
+        next flush."""
         self._check_open()
         if self._read_only:
             raise ArchiveError(f"archive {self.path} is open for reading only")
@@ -418,7 +419,7 @@ class Archive:
         return [Gap(*row) for row in rows]
 
     def alarms(self) -> list[tuple[float, str]]:
-        """Every security alarm (receipt UTC s, text), in the order raised; none in an archive older than alarms."""
+        """Every alarm (receipt UTC s, text), in the order raised; none in an archive older than alarms."""
         self.flush()
         if not self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = 'alarms'").fetchone():
             return []
@@ -432,7 +433,7 @@ class Archive:
 
     def counts(self) -> dict[str, int]:
         """Packet counts: ``stored``, ``decoded``, ``undecodable``, ``gaps``, ``missing`` (packets lost in gaps),
-        ``duplicates``, ``late``, ``alarms`` (security alarms), and one ``TM[s,t]`` entry per service and subtype
+        ``duplicates``, ``late``, ``alarms``, and one ``TM[s,t]`` entry per service and subtype
         seen."""
         self.flush()
         db = self._db

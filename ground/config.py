@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import Field
 
 from contracts.link import LinkConfig
@@ -124,6 +126,14 @@ class GroundConfig(Config):
         description="OBT minus UTC (s from the epoch) that ground assumes before any time report, s "
         "(default: the oscillator's default, a clock counting from launch)",
     )
+    verification_margin_s: float = Field(
+        10.0, ge=0, description="a radiated telecommand's acceptance report is awaited for the round-trip light time, "
+        "its transmission and this margin, s; then the TC is re-sent (a new sequence count) or, after max_resends, an "
+        "alarm is raised (10 s: a few ground steps and the on-board processing, far below a light time)")
+    max_resends: int = Field(2, ge=0, description="times a telecommand without acceptance is re-sent before the alarm")
+    alarm_severity: Literal["LOW", "MEDIUM", "HIGH"] = Field(
+        "MEDIUM", description="an on-board event report of at least this severity raises an alarm (ECSS-E-ST-70-41C "
+        "service 5: medium and high severity are anomaly reports)")
     time_report_rate_exponent: int = Field(
         2, ge=0, le=16, description="ask for a service 9 time report every 2^n OBT s (PUS 9,1)"
     )

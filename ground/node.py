@@ -31,7 +31,8 @@ from ground.operator import OperatorError, command_request, timeline_request, tr
 from ground.segment import GroundSegment, ReceivedPacket
 
 log = logging.getLogger("ground")
-MAX_ALARM_LINES = 10  # security alarms quoted in the summary (the archive keeps them all)
+MAX_ALARM_LINES = 10  # alarms quoted in the summary (the archive keeps them all)
+ATTENTION = ("SECURITY ALARM", "ALARM", "WARNING")  # ground's log lines that open so are logged as warnings
 
 
 class TruthLog:
@@ -67,7 +68,7 @@ def summary_lines(segment: GroundSegment, archive: Archive) -> list[str]:
                  f"from {c.n_reports} time reports")
     alarms = segment.state.alarms
     if alarms:
-        lines.append(f"{len(alarms)} security alarm(s); the first {min(len(alarms), MAX_ALARM_LINES)}:")
+        lines.append(f"{len(alarms)} alarm(s); the first {min(len(alarms), MAX_ALARM_LINES)}:")
         lines += alarms[:MAX_ALARM_LINES]
     return lines
 
@@ -165,8 +166,10 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
         archive.flush()  # at most one ground step of telemetry is ever unwritten
         for rec in msg.truth:
             truth.add(rec)
+        for utc, text in segment.take_alarms():
+            archive.alarm(utc, text)
         for line in lines:
-            (log.warning if line.startswith("SECURITY ALARM") else log.info)("%s", line)
+            (log.warning if line.startswith(ATTENTION) else log.info)("%s", line)
         if tc_log is not None and uplink:
             tc_log.write(b"".join(segment.radiated))  # every telecommand radiated (no security envelope), for analysis
             tc_log.flush()

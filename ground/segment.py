@@ -4,11 +4,16 @@ Pure: each ``step`` takes the UTC and the telemetry packets the antenna received
 to radiate, the decoded packets for the archive, and log lines. Ground knows UTC only: it converts everything
 it uploads to on-board time with its current OBT-UTC correlation, fitted from the service 9 time reports
 (each stamped on board one light time before it arrived).
+
+Ground verifies what it radiates: a telecommand whose acceptance report has not come back within the round-trip
+light time, its transmission and ``verification_margin_s`` is re-sent with a new sequence count, up to
+``max_resends`` times, then raised as an alarm. Every on-board event of ``alarm_severity`` or above raises an alarm
+too. A log line opening with ``WARNING`` or ``ALARM`` (``SECURITY ALARM`` for the security ones) is for an operator's
+attention; the alarms are kept in ``state.alarms`` and the archive's alarms table.
 """
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 
@@ -17,7 +22,7 @@ from ground.config import FlybyBelief, GroundConfig
 from ground.correlation import Correlation, CorrelationError, TimeReport, fitted_correlation
 from ground.uplink import schedule_inserts
 from timeline.convert import resolved_commands
-from timeline.model import Timeline, TimelineError
+from timeline.model import Timeline
 
 
 SCHEDULED_SEQ_BASE = 0x2000  # TCs sent inside schedule inserts count from here, so the radiated counts stay gapless
@@ -32,7 +37,7 @@ class ReceivedPacket:
     header: pus.TmHeader | None
     report: pus.TmReport | None
     error: str | None
-    alarm: str | None = None  # a security alarm this packet raised
+    alarm: str | None = None  # an alarm this packet raised (security, or an on-board event's severity)
 
 
 @dataclass(frozen=True)
@@ -46,6 +51,7 @@ class RowUpload:
     ca_offset_s: float | None
     seq_count: int | None
     refused: str | None
+    late: str | None = None  # uploaded although due before it can arrive: released on arrival (C/A-relative)
 
 
 @dataclass(frozen=True)
@@ -72,6 +78,17 @@ class GroundState:
     verifications_failed: int = 0
     sent_requests: set[pus.RequestId] = field(default_factory=set)  # every TC ground sent, scheduled ones included
     alarms: list[str] = field(default_factory=list)
+    resends: int = 0
+
+
+@dataclass
+class _Awaited:
+    """A radiated telecommand whose acceptance report has not come back yet."""
+
+    command: pus.TcCommand
+    sent_utc_s: float
+    due_utc_s: float
+    sends: int
 
 
 class GroundSegment:
@@ -98,6 +115,8 @@ class GroundSegment:
         self._rekeys: dict[pus.RequestId, sdls.SecurityAssociation] = {}  # rekeying TC -> the association it loads
         self._new_sa: dict[int, sdls.SecurityAssociation] = {}
         self.radiated: list[bytes] = []  # the TC packets of the last step's uplink, without their security envelope
+        self._awaited: dict[pus.RequestId, _Awaited] = {}
+        self._alarms_out: list[tuple[float, str]] = []  # alarms raised by no packet (verification), for the archive
 
     def nominal_trajectory_tc(self) -> pus.UploadNominalTrajectory:
         """The nominal trajectory telecommand, its C/A time in OBT by the current correlation."""
@@ -133,15 +152,60 @@ class GroundSegment:
         self.queue(cmd)
         return cmd
 
-    def _tc(self, cmd: pus.TcCommand) -> bytes:
+    def _tc(self, cmd: pus.TcCommand, utc_s: float, sends: int = 1) -> bytes:
+        """Encode ``cmd`` with the next sequence count, to be radiated at ``utc_s``, and await its acceptance."""
         packet = pus.encode_tc(cmd, self.cfg.apid, self._next_seq(), source_id=self.cfg.source_id)
+        rid = pus.request_id_of(packet)
         sent = self.state.sent_requests
-        sent.add(pus.request_id_of(packet))
-        if isinstance(cmd, pus.RekeySecurityAssociation) and cmd.spi in self._new_sa:
-            self._rekeys[pus.request_id_of(packet)] = self._new_sa.pop(cmd.spi)
+        sent.add(rid)
+        if isinstance(cmd, pus.RekeySecurityAssociation):
+            if cmd.spi in self._new_sa:
+                self._rekeys[rid] = self._new_sa.pop(cmd.spi)
+            else:  # a re-sent rekey: its completion switches ground as the first one's would have
+                self._rekeys.update({rid: sa for sa in list(self._rekeys.values()) if sa.spi == cmd.spi})
         if isinstance(cmd, pus.InsertActivities | pus.InsertCaRelativeActivities):
             sent.update(a.request_id for a in cmd.activities)
+        if isinstance(cmd, pus.AddEventActions):
+            sent.update(pus.request_id_of(d.tc_packet) for d in cmd.definitions)
+        link = self.cfg.link
+        wait = (2.0 * link.one_way_light_time_s + len(packet) * 8.0 / link.uplink_rate_bps
+                + self.cfg.verification_margin_s)
+        self._awaited[rid] = _Awaited(cmd, utc_s, utc_s + wait, sends)
         return packet
+
+    def _overdue(self, utc_s: float, log: list[str]) -> list[bytes]:
+        """Re-send each telecommand whose acceptance is overdue (a new sequence count), or raise its alarm."""
+        out = []
+        for rid, a in list(self._awaited.items()):
+            if utc_s < a.due_utc_s:
+                continue
+            del self._awaited[rid]
+            what = f"TC {rid.seq_count} ({type(a.command).__name__}, sent at UTC {a.sent_utc_s:.1f} s)"
+            if a.sends <= self.cfg.max_resends:
+                packet = self._tc(a.command, utc_s, a.sends + 1)
+                self.state.resends += 1
+                log.append(f"WARNING: {what}: no acceptance report by UTC {a.due_utc_s:.1f} s: re-sent as TC "
+                           f"{pus.request_id_of(packet).seq_count} (send {a.sends + 1} of {self.cfg.max_resends + 1})")
+                out.append(packet)
+            else:
+                self._alarm(utc_s, f"ALARM: {what}: no acceptance report after {a.sends} send(s); given up", log)
+        return out
+
+    def _alarm(self, utc_s: float, text: str, log: list[str]) -> None:
+        """An alarm that no packet raised."""
+        self.state.alarms.append(text)
+        self._alarms_out.append((utc_s, text))
+        log.append(text)
+
+    def take_alarms(self) -> list[tuple[float, str]]:
+        """The alarms raised by no packet since the last call (UTC s, text), for the archive."""
+        out, self._alarms_out = self._alarms_out, []
+        return out
+
+    @property
+    def awaiting(self) -> int:
+        """Radiated telecommands whose acceptance report has not come back yet."""
+        return len(self._awaited)
 
     def step(self, utc_s: float, downlink: tuple[bytes, ...], arrival_utc_s: tuple[float, ...]
              ) -> tuple[list[bytes], list[ReceivedPacket], list[str]]:
@@ -151,27 +215,27 @@ class GroundSegment:
         """
         log: list[str] = []
         received = [self._receive(raw, t, log) for raw, t in zip(downlink, arrival_utc_s, strict=True)]
-        uplink: list[bytes] = []
+        uplink: list[bytes] = self._overdue(utc_s, log)
         upload_at = self.cfg.upload_nominal_at_s if self.cfg.upload_nominal_at_s is not None else float("-inf")
         if not self.state.nominal_sent and utc_s >= upload_at:
             self.state.nominal_sent = True
             tc = self.nominal_trajectory_tc()
             log.append(f"upload nominal trajectory: C/A {self.nominal_ca_utc_s:.2f} s UTC = OBT {tc.ca_obt_s:.2f} s, "
                        f"{self.nominal_ca_km:.2f} km")
-            uplink.append(self._tc(tc))
-            uplink.append(self._tc(pus.SetTimeReportRate(rate_exponent=self.cfg.time_report_rate_exponent)))
+            uplink.append(self._tc(tc, utc_s))
+            uplink.append(self._tc(pus.SetTimeReportRate(rate_exponent=self.cfg.time_report_rate_exponent), utc_s))
             if self.bad_pixel_map is not None:
                 m = self.bad_pixel_map
                 log.append(f"upload bad-pixel map: {len(m.pixels)} pixel(s), {len(m.columns)} column(s)")
-                uplink.append(self._tc(m))
+                uplink.append(self._tc(m, utc_s))
             if self.timeline is not None and self.timeline.entries:
                 inserts = self.timeline_upload(utc_s, tc, log)
-                uplink += [self._tc(insert) for insert in inserts]
+                uplink += [self._tc(insert, utc_s) for insert in inserts]
                 if inserts:
                     log.append(f"upload timeline: {sum(len(i.activities) for i in inserts)} of "
                                f"{len(self.timeline.entries)} command(s) into the on-board schedule")
         for cmd in self._queue:
-            uplink.append(self._tc(cmd))
+            uplink.append(self._tc(cmd, utc_s))
         self._queue = []
         self.radiated = uplink
         units = uplink if self._sender is None else [self._sender.secure(p) for p in uplink]
@@ -182,9 +246,10 @@ class GroundSegment:
         """The schedule inserts of the timeline (``ground.uplink.schedule_inserts``), tags in OBT by the current
         correlation.
 
-        Commands that would reach the spacecraft too late (before now + light time + margin) are refused here,
-        each logged with its row, and the rest is uploaded; empty if nothing is left. What happened to every row is
-        appended to ``uploads``.
+        A command that would reach the spacecraft too late (before now + light time + margin) is refused here if its
+        tag is absolute; one tied to C/A is uploaded all the same (the spacecraft releases it on arrival, with an
+        event: it was meant for before then, and the board may place C/A otherwise). Each is a WARNING line naming
+        its row; empty if nothing is left. What happened to every row is appended to ``uploads``.
         """
         timeline = timeline or self.timeline
         assert timeline is not None
@@ -193,11 +258,18 @@ class GroundSegment:
         kw = dict(epoch_utc=self.epoch_utc, ca_utc_s=self.nominal_ca_utc_s, source=source)
         every = resolved_commands(timeline, self.correlation, **kw)
         why: dict[int, str] = {}
-        try:
-            resolved_commands(timeline, self.correlation, not_before_obt_s=not_before, **kw)
-        except TimelineError as err:  # the rows that would arrive too late, each named by its row
-            log.extend(f"timeline command refused: {p}" for p in err.problems)
-            why = {int(m.group(1)): p for p in err.problems if (m := re.match(r"row (\d+),", p))}
+        late: dict[int, str] = {}
+        for r in every:
+            if r.obt_s >= not_before:
+                continue
+            text = (f"row {r.row}, field 'time': resolves to OBT {r.obt_s:.3f} s, before the earliest allowed OBT "
+                    f"{not_before:.3f} s")
+            if r.ca_offset_s is None:
+                why[r.row] = text
+                log.append(f"WARNING: timeline command refused: {text}")
+            else:
+                late[r.row] = text + ": uploaded, released on arrival"
+                log.append(f"WARNING: timeline command late: {late[r.row]}")
         resolved = [r for r in every if r.row not in why]
         seqs: list[int] = []  # the sequence count of each resolved command's TC, in resolved order
 
@@ -208,7 +280,7 @@ class GroundSegment:
         inserts = schedule_inserts(resolved, self.cfg.apid, next_seq, nominal, self.cfg.source_id)
         seq_of = {r.row: s for r, s in zip(resolved, seqs, strict=True)}
         self.uploads.append(TimelineUpload(utc_s, not_before, tuple(
-            RowUpload(r.row, r.command.name, r.obt_s, r.ca_offset_s, seq_of.get(r.row), why.get(r.row))
+            RowUpload(r.row, r.command.name, r.obt_s, r.ca_offset_s, seq_of.get(r.row), why.get(r.row), late.get(r.row))
             for r in sorted(every, key=lambda r: r.row))))
         return inserts
 
@@ -243,16 +315,18 @@ class GroundSegment:
             sa = self._rekeys.pop(report.request_id)
             self._sender.switch(sa)
             log.append(f"TC authentication: the spacecraft loaded security association {sa.spi}; sending under it")
-        elif isinstance(report, pus.Verification) and not report.success:
+        if isinstance(report, pus.Verification):
+            self._awaited.pop(report.request_id, None)  # accepted or refused: it arrived
+        if isinstance(report, pus.Verification) and not report.success:
             self.state.verifications_failed += 1
-            log.append(f"TC {report.request_id.seq_count} failed at {report.stage.name.lower()}: "
+            log.append(f"WARNING: TC {report.request_id.seq_count} refused on board at {report.stage.name.lower()}: "
                        f"code 0x{report.failure_code:04X} {report.reason}")
         elif isinstance(report, pus.EventReport):
             log.append(f"event OBT {header.obt_s:.2f} s {type(report).__name__}: "
                        + ", ".join(f"{k}={v}" for k, v in report.model_dump().items() if k != "severity"))
             if isinstance(report, pus.ClockJumpEvent):
                 self._clock_jumped(report.step_s, log)
-        alarm = self._security_alarm(header, report)
+        alarm = self._security_alarm(header, report) or self._event_alarm(header, report)
         if alarm is not None:
             self.state.alarms.append(alarm)
             log.append(alarm)
@@ -273,6 +347,13 @@ class GroundSegment:
             return (f"SECURITY ALARM: {at}: the spacecraft refused an uplinked TC ({code}, SPI {report.spi}, "
                     f"ARSN {report.arsn})")
         return None
+
+    def _event_alarm(self, header: pus.TmHeader, report: pus.TmReport) -> str | None:
+        """An alarm for an on-board event of ``alarm_severity`` or above; None otherwise."""
+        if not isinstance(report, pus.EventReport) or report.severity < pus.Severity[self.cfg.alarm_severity]:
+            return None
+        fields = ", ".join(f"{k}={v}" for k, v in report.model_dump(mode="json").items() if k != "severity")
+        return f"ALARM: OBT {header.obt_s:.2f} s: {report.severity.name} event {type(report).__name__}: {fields}"
 
     def _clock_jumped(self, step_s: float, log: list[str]) -> None:
         """On-board time stepped by ``step_s`` (commanded or not): the time reports received so far were all stamped

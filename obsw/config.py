@@ -5,11 +5,12 @@
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
-from pydantic import Field, field_validator, model_validator
+from pydantic import Field, ValidationError, field_validator, model_validator
 
 from contracts.checks import inertia_problem
+from contracts.dictionary import DICTIONARY, CheckType, EventId, MonitoringDefinition, Parameter, Severity
 from contracts.model import Config
 from obsw.table import ScheduleTable
 from obsw.timing import TimingConfig
@@ -129,6 +130,112 @@ class TrackingConfig(Config):
         description="body axis held along the flyby-plane normal, so the slew is about it alone (body Y: the "
         "smaller transverse inertia, 0.117 vs 0.152 kg m^2); must be orthogonal to camera.boresight_body",
     )
+
+
+class AttitudeConfig(Config):
+    """Attitude determination: a multiplicative EKF on the star tracker and the gyro that estimates the gyro bias."""
+
+    star_tracker_noise_arcsec: tuple[float, float, float] = Field(
+        (6.0, 6.0, 40.0), description="one-sigma noise of a star tracker solution per body axis, arcsec (knowledge of "
+        "universe.sensors.star_tracker.noise_arcsec)")
+    gyro_arw_deg_sqrt_h: float = Field(0.15, ge=0, description="gyro angle random walk, deg/sqrt(h) (knowledge of "
+                                       "universe.sensors.gyro.arw_deg_sqrt_h)")
+    gyro_bias_walk_deg_s_sqrt_s: float = Field(
+        1.0e-3, ge=0, description="rate random walk the filter allows for the gyro bias, deg/s per sqrt(s): far above "
+        "the gyro's own (1 deg/h over an hour, 4.6e-6 deg/s/sqrt(s)) so that a bias step is followed within seconds "
+        "instead of hours; a 0.05 deg/s step is estimated to 10 % in about 20 s (tests/obsw/test_attitude.py)")
+    initial_attitude_sigma_deg: float = Field(1.0, gt=0, description="one-sigma attitude uncertainty before the first "
+                                              "star tracker solution is folded in, deg")
+    initial_bias_sigma_deg_s: float = Field(0.1, gt=0, description="one-sigma gyro bias uncertainty at start, deg/s "
+                                            "(twice the largest bias step of configs/scenarios/faults)")
+    bias_known_sigma_deg_s: float = Field(
+        0.0025, gt=0, description="the bias estimate is taken as known (its parameter monitored) while its one-sigma "
+        "uncertainty is below this, deg/s (the filter's steady state with the default noises is 0.0019 deg/s, reached "
+        "in about 2 s; a long star tracker outage makes it unknown again)")
+    outage_after_s: float = Field(0.5, gt=0, description="a star tracker outage is declared after this long without "
+                                  "a reading, s (five updates of a 10 Hz tracker)")
+
+
+class FdirConfig(Config):
+    """Failure detection thresholds of the detectors that are not service 12 parameter checks."""
+
+    wheel_window_s: float = Field(1.0, gt=0, description="wheel failure detection window: commanded impulse against "
+                                  "measured momentum change, s (ten control periods)")
+    wheel_min_impulse_nms: float = Field(
+        1.0e-4, gt=0, description="a wheel is judged over a window only if its commanded impulse is at least this, "
+        "N m s: three times the friction of a healthy wheel at the nominal flyby's largest speed (Coulomb 1e-5 N m plus "
+        "viscous 1e-7 N m s x 200 rad/s over 1 s, universe.spacecraft.wheels), so friction stays below the "
+        "missed fraction")
+    wheel_missed_fraction: float = Field(
+        0.5, gt=0, lt=1, description="a wheel whose measured momentum change differs from the commanded impulse by "
+        "more than this fraction of it in a window fails that window (a failed or stuck wheel misses nearly all)")
+    wheel_confirmations: int = Field(2, ge=1, description="consecutive failed windows that confirm a wheel failure")
+    wheel_limit_fraction: float = Field(
+        0.9, gt=0, le=1, description="a wheel whose momentum reached this fraction of max_momentum_nms in a window is "
+        "not judged over it (the hardware cuts its torque at the limit)")
+    frame_saturated_fraction: float = Field(
+        0.5, gt=0, le=1, description="a frame with at least this fraction of sampled pixels at full scale is "
+        "saturated (bodies are at most ~6 % of the frame at C/A, below 90 % of full scale)")
+    frame_sample_stride: int = Field(4, ge=1, description="the saturation statistic samples every n-th row and "
+                                     "column of the raw frame (65,536 of a 1024x1024 frame)")
+    frame_timeout_s: float = Field(0.3, gt=0, description="a requested frame not delivered this long after the "
+                                   "request is missing, s (it is exposed one control period after the request)")
+    false_lock_gate_deg: float = Field(
+        0.25, gt=0, description="a line of sight whose offset from the recognised trajectory moved more than this since "
+        "the last accepted one is refused as a false lock, deg (44 px at 512: twice the tracking loop's autonomous "
+        "gate, which the five closed-loop flybys never exceed with a valid detection)")
+    false_lock_gate_growth_deg_s: float = Field(
+        0.02, ge=0, description="the gate grows by this per second since the last accepted line of sight, deg/s (the "
+        "Dimorphos offset from the barycentre turns with the line of sight; after 100 s the gate spans the field of "
+        "view and anything is taken again)")
+    uplink_first_seq_count: int = Field(0, ge=0, description="sequence count of the first telecommand ground "
+                                        "radiates (ground.segment counts from 0 at the start of a run)")
+    uplink_seq_modulo: int = Field(
+        0x2000, ge=2, description="ground's radiated telecommands count modulo this (ground.segment: the counts from "
+        "0x2000 up are those of the TCs it schedules)")
+
+
+class EventActionConfig(Config):
+    """An event-action definition loaded with the software (service 19): when ``event`` is reported, run
+    ``command`` (a timeline command of the dictionary) with ``args``."""
+
+    event: str = Field(description="event identifier name (contracts.dictionary.EventId)")
+    command: str = Field(description="timeline command name of the telecommand to run")
+    args: dict[str, Any] = Field(default_factory=dict, description="its arguments")
+    enabled: bool = Field(True, description="enabled at start")
+
+    @model_validator(mode="after")
+    def _known(self) -> EventActionConfig:
+        if self.event not in EventId.__members__:
+            raise ValueError(f"event: {self.event!r} is not one of {', '.join(EventId.__members__)}")
+        cls = DICTIONARY.commands.get(self.command)
+        if cls is None:
+            raise ValueError(f"command: {self.command!r} is not one of {', '.join(sorted(DICTIONARY.commands))}")
+        try:
+            cls.model_validate(self.args)
+        except ValidationError as exc:
+            raise ValueError("args: " + "; ".join(f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
+                                                  for e in exc.errors())) from None
+        return self
+
+    def telecommand(self) -> Any:
+        """The telecommand this action runs."""
+        return DICTIONARY.commands[self.command].model_validate(self.args)
+
+
+DEFAULT_MONITORING = (
+    MonitoringDefinition(pmon_id=1, parameter=Parameter.GYRO_BIAS, check_type=CheckType.LIMIT, repetition=5,
+                         low=0.0, high=1.7453292519943295e-04, severity=Severity.MEDIUM),
+    MonitoringDefinition(pmon_id=2, parameter=Parameter.EXPOSURE_TO_CENTROID, check_type=CheckType.LIMIT,
+                         repetition=3, low=0.0, high=0.6, severity=Severity.MEDIUM),
+)
+"""Default service 12 definitions: the estimated gyro bias within 0.01 deg/s (five times the estimate's noise with
+the default filter, tests/obsw/test_attitude.py; the gyro's own bias instability is 1 deg/h), five samples in a
+row; a frame's line of sight on board within 0.6 s of its exposure (three times the 0.2 s of the default timing
+model: readout, FPGA stages and software), three samples in a row."""
+
+DEFAULT_EVENT_ACTIONS = (EventActionConfig(event="WHEEL_FAILED", command="set_wheel_set", args={"wheels": 0}),)
+"""Default service 19 definitions: a wheel found failed switches the control to the wheels not found failed."""
 
 
 class ModesConfig(Config):
@@ -381,6 +488,15 @@ class ObswConfig(Config):
     camera: CameraKnowledge = CameraKnowledge()
     targets: TargetKnowledge = TargetKnowledge()
     wheels: WheelKnowledge = WheelKnowledge()
+    attitude: AttitudeConfig = AttitudeConfig()
+    fdir: FdirConfig = FdirConfig()
+    monitoring: tuple[MonitoringDefinition, ...] = Field(
+        DEFAULT_MONITORING, description="service 12 parameter monitoring definitions loaded with the software")
+    event_actions: tuple[EventActionConfig, ...] = Field(
+        DEFAULT_EVENT_ACTIONS, description="service 19 event-action definitions loaded with the software")
+    onboard_source_id: int = Field(0x0C1, ge=0, le=0xFFFF, description="PUS source id of the telecommands the "
+                                   "software builds itself (its event actions; default its own APID): their "
+                                   "verification reports stay on board")
     control: ControlConfig = ControlConfig()
     modes: ModesConfig = ModesConfig()
     recognition: RecognitionConfig = RecognitionConfig()
@@ -397,6 +513,19 @@ class ObswConfig(Config):
         if problem:
             raise ValueError(problem)
         return v
+
+    @model_validator(mode="after")
+    def _unique_definitions(self) -> ObswConfig:
+        pmon = [d.pmon_id for d in self.monitoring]
+        events = [a.event for a in self.event_actions]
+        for name, ids in (("monitoring", pmon), ("event_actions", events)):
+            dup = sorted({i for i in ids if ids.count(i) > 1}, key=str)
+            if dup:
+                raise ValueError(f"{name}: {dup} defined twice")
+        if self.onboard_source_id == self.ground_id:
+            raise ValueError(f"onboard_source_id: {self.onboard_source_id} is the ground's id (ground_id): the "
+                             "verification of the software's own telecommands would go to the ground")
+        return self
 
     @model_validator(mode="after")
     def _orthogonal_axes(self) -> ObswConfig:

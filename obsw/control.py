@@ -131,9 +131,11 @@ def wheel_torques_nm(
     wheel_momentum_nms: ArrayLike,
     max_torque_nm: float,
     max_momentum_nms: float,
+    in_use: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Wheel torques, N m (N,), that give the body ``body_torque_nm`` (``-A tau = T``) within the wheel limits.
 
+    ``in_use`` (N booleans, default all) is the wheel set: a wheel out of it gets no torque (a failed wheel).
     Minimum-norm split (pseudo-inverse) over the wheels that may take it: a wheel at or beyond
     ``max_momentum_nms`` is not pushed further (it is dropped from the split when its share would speed it up).
     If any wheel would exceed ``max_torque_nm`` all torques are scaled down by the same factor, so the body torque
@@ -150,7 +152,9 @@ def wheel_torques_nm(
     if not max_momentum_nms > 0:
         raise ValueError(f"max_momentum_nms must be > 0, got {max_momentum_nms}")
 
-    usable = np.ones(n, dtype=bool)
+    usable = np.ones(n, dtype=bool) if in_use is None else np.asarray(in_use, dtype=bool).copy()
+    if usable.shape != (n,):
+        raise ValueError(f"in_use must have {n} values, got shape {usable.shape}")
     tau = np.zeros(n)
     for _ in range(n):
         tau = np.zeros(n)
@@ -161,7 +165,7 @@ def wheel_torques_nm(
         if not pushing.any():
             break
         usable &= ~pushing
-    peak = float(np.max(np.abs(tau)))
+    peak = float(np.max(np.abs(tau), initial=0.0))
     if peak > max_torque_nm:
         tau *= max_torque_nm / peak
     return tau

@@ -166,6 +166,24 @@ class Executive:
             if kind in spec.subscribes:
                 heapq.heappush(self._queues[task], (ev.key, ev))
 
+    @property
+    def sequence(self) -> int:
+        """The sequence number the next event posted will get."""
+        return self._sequence
+
+    def shift_time(self, step_s: float, before_sequence: int,
+                   payload: Callable[[EventKind, object], object] = lambda kind, p: p) -> None:
+        """On-board time stepped by ``step_s``: every queued event posted before ``before_sequence`` (stamped on the
+        old time scale) moves with it, its payload rewritten by ``payload``; events posted since keep their time."""
+        for task, q in self._queues.items():
+            moved = []
+            for key, ev in q:
+                if ev.sequence < before_sequence:
+                    ev = Event(ev.time_s + step_s, ev.priority, ev.sequence, ev.kind, payload(ev.kind, ev.payload))
+                moved.append((ev.key, ev))
+            heapq.heapify(moved)
+            self._queues[task] = moved
+
     def add_timer(self, kind: EventKind, due_s: Callable[[], float | None]) -> None:
         """A timer: at each release of a task subscribing to ``kind``, if ``due_s()`` has come and no such event is
         queued for it, post one at that time."""

@@ -189,6 +189,15 @@ class ModeManager:
         self.ca_obt_s: float | None = None
         self.last_seen_obt_s: float | None = None
 
+    def shift_time(self, step_s: float) -> None:
+        """On-board time stepped by ``step_s``: the C/A estimate, the last detection and the mode's start move with
+        it (they stand for physical times)."""
+        self.since_obt_s += step_s
+        if self.ca_obt_s is not None:
+            self.ca_obt_s += step_s
+        if self.last_seen_obt_s is not None:
+            self.last_seen_obt_s += step_s
+
     def handle(self, trigger: Trigger, obt_s: float) -> ModeEvent | None:
         """Apply ``trigger`` at on-board time ``obt_s``: the transition's event report, or None if the mode stays."""
         if not (isinstance(obt_s, (int, float)) and math.isfinite(obt_s)):

@@ -60,6 +60,15 @@ class TrajectoryRecognizer:
         self._meas_theta: list[float] = []
         self._solved: tuple[int, tuple[float, float, NDArray[np.float64]]] | None = None
 
+    def shift_time(self, step_s: float) -> None:
+        """On-board time stepped by ``step_s``: the nominal, the candidates and the measurement times move with it,
+        so every residual, and the estimates (moved by the step), stay as they were."""
+        self.nominal = self.nominal.with_ca(self.nominal.ca_time_obt_s + step_s, self.nominal.ca_distance_km)
+        self._times_s = self._times_s + step_s
+        self._cand_t = self._cand_t + step_s
+        self._meas_t = [t + step_s for t in self._meas_t]
+        self._solved = None
+
     # --- measurements --------------------------------------------------------------------------------------------
 
     @property

@@ -16,7 +16,13 @@ Rules, all in on-board time (OBT):
 - C/A-relative entries carry ``ca_offset_s``. Once the board holds a C/A estimate (``reanchor_ca``), their tag is
   always ``ca + ca_offset_s``; before that, the tag the ground computed is used. Time-shifting such an entry moves
   its offset too, so a later re-anchoring keeps the shift. Re-anchoring may move a tag into the past: the entry
-  is then released at the next tick (late, never dropped, never twice).
+  is then released at the next tick (late, never dropped, never twice). A C/A-relative entry whose tag is already
+  past (or within the margin) when it is inserted was meant for before now: it is accepted and released at the next
+  tick, late, like a re-anchored one (an absolute tag in the past is refused).
+- ``enabled`` false (ECSS-E-ST-70-41C: the release function disabled, TC[11,2]; the flight software disables it in
+  SAFE) releases nothing; the entries stay and those past their tag go at the first tick after enabling.
+- ``shift_clock`` moves every tag and the C/A anchor by an on-board time step, so each entry keeps the physical time
+  it stands for.
 """
 
 from __future__ import annotations
@@ -132,6 +138,7 @@ class TimeBasedSchedule:
         self._released_ids: set[int] = set()
         self._released = 0
         self._ca_obt_s: float | None = None
+        self.enabled = True
 
     # --- queries -----------------------------------------------------------------------------------
 
@@ -145,8 +152,8 @@ class TimeBasedSchedule:
 
     @property
     def next_tag_obt_s(self) -> float | None:
-        """Tag of the next entry to release, OBT s (None when empty)."""
-        return self._entries[0].tag_obt_s if self._entries else None
+        """Tag of the next entry to release, OBT s (None when empty or disabled)."""
+        return self._entries[0].tag_obt_s if self._entries and self.enabled else None
 
     def listing(self, selection: Selection | None = None) -> list[ScheduledCommand]:
         """The pending entries (all, or the selected ones) in release order (PUS 11 detail report)."""
@@ -217,6 +224,8 @@ class TimeBasedSchedule:
     def release_due(self, now_obt_s: float) -> list[ScheduledCommand]:
         """Every pending entry with tag <= now, in (tag, priority, sequence) order, each released exactly once."""
         _require_time(now_obt_s, "release_due: now_obt_s")
+        if not self.enabled:
+            return []
         n = 0
         while n < len(self._entries) and self._entries[n].tag_obt_s <= now_obt_s:
             n += 1
@@ -236,6 +245,14 @@ class TimeBasedSchedule:
         }
         self._entries = sorted((moved.get(e.sequence, e) for e in self._entries), key=_key)
         return [e for e in self._entries if e.sequence in moved]
+
+    def shift_clock(self, step_s: float) -> int:
+        """On-board time stepped by ``step_s``: move every tag and the C/A anchor with it; return the entries moved."""
+        _require_time(step_s, "shift_clock: step_s")
+        if self._ca_obt_s is not None:
+            self._ca_obt_s += step_s
+        self._entries = [replace(e, tag_obt_s=e.tag_obt_s + step_s) for e in self._entries]
+        return len(self._entries)
 
     # --- checks ------------------------------------------------------------------------------------
 
@@ -268,7 +285,8 @@ class TimeBasedSchedule:
         tag = float(req.tag_obt_s)
         if req.ca_offset_s is not None and self._ca_obt_s is not None:
             tag = self._ca_obt_s + req.ca_offset_s
-        self._refuse_early(now_obt_s, tag, rid, "")
+        if req.ca_offset_s is None:  # a C/A-relative tag already past is released at once, late
+            self._refuse_early(now_obt_s, tag, rid, "")
         if len(self._entries) >= self.capacity:
             raise CommandRejected(
                 RejectReason.SCHEDULE_FULL, f"request {rid}: the schedule is full ({self.capacity} entries)"

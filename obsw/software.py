@@ -5,21 +5,29 @@ camera frame, the processor's speed) and returns what the software commands (whe
 effect, a frame request, telemetry packets). Inside, the executive (``obsw.executive``) releases the tasks in the
 slots of the schedule table (``obsw.table``; by default all of them, in this order, every minor frame):
 
-1. TIME: an OBT jump is reported; a service 9 time report goes out when due;
+1. TIME: an OBT jump is reported, and everything held in OBT is moved by it so the physical times it stands for do
+   not move; a service 9 time report goes out when due;
 2. TELECOMMANDS: telecommands received are decoded, verified (PUS service 1) and executed; a bad one is answered
-   with a failure report and nothing else is lost;
-3. SCHEDULE: scheduled commands whose tag has come (PUS service 11) are released and executed;
-4. ATTITUDE: the attitude estimate is taken from the star tracker (propagated with the gyro during an outage);
-5. IMAGING: a frame whose readout and FPGA stages are over goes through the software stage of the imaging chain;
-   Dimorphos's line of sight, turned inertial with the attitude at its exposure, is a measurement from the task's
-   finish on;
+   with a failure report and nothing else is lost; a gap in their sequence counts reports a lost uplink
+   (``obsw.uplink_watch``);
+3. SCHEDULE: scheduled commands whose tag has come (PUS service 11) are released and executed (late ones with an
+   event);
+4. ATTITUDE: the attitude and the gyro bias are estimated (``obsw.attitude``: a multiplicative EKF on the star
+   tracker and the gyro; an outage is declared and the attitude propagated with the estimated bias);
+5. IMAGING: a frame whose readout and FPGA stages are over goes through the software stage of the imaging chain
+   (a saturated or blank frame is discarded, ``obsw.frame_quality``); Dimorphos's line of sight, turned inertial with
+   the attitude at its exposure and accepted by the false-lock gate (``obsw.lock_gate``), is a measurement from the
+   task's finish on;
 6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time;
 7. MODES: the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
    on-board estimate, end of flyby);
 8. CONTROL: the tracking loop (with the latest measurement, taken at its exposure) and the PD controller give the
-   wheel torques; a wheel reaching its momentum limit fails a parameter check;
-9. FDIR: a failed parameter check is reported and recovered (SAFE);
-10. CAMERA: a frame is requested at the imaging cadence;
+   wheel torques over the wheels in use (SAFE holds the attitude of its entry); a wheel reaching its momentum limit
+   fails a parameter check;
+9. FDIR: a failed parameter check is reported and recovered (SAFE); failed wheels are found
+   (``obsw.wheel_health``); the service 12 definitions are checked (``obsw.monitoring``); the service 19 actions of
+   the events raised are run (``obsw.event_action``);
+10. CAMERA: a frame is requested at the imaging cadence; a frame overdue is reported missing;
 11. TELEMETRY: housekeeping, with the executive's timing, and the estimate report go into the downlink.
 
 Each task takes the execution time of the timing model (``obsw.timing``); what a task produces exists on board
@@ -33,6 +41,7 @@ It never reads the clock, the bus or the disk: the node feeds it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections import deque
 from collections.abc import Callable
@@ -46,13 +55,18 @@ from contracts import pus, sdls
 from contracts.messages import FrameMeta, FrameRequest, StepReply, StepRequest
 from contracts.mode import Mode
 from contracts.task import Task
+from obsw.attitude import AttitudeEstimator
 from obsw.config import ObswConfig
 from obsw.control import pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
+from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
+from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
-from obsw.modes import CaEstimate, Cause, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
+from obsw.lock_gate import LockGate
+from obsw.modes import CaEstimate, Cause, Fault, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
 from obsw.modes import SetMode as SetModeTrigger
+from obsw.monitoring import ParameterMonitor
 from obsw.recognition import TrajectoryRecognizer
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
 from obsw.tc_security import TcSecurity
@@ -60,13 +74,17 @@ from obsw.timing import TimingModel, Work
 from obsw.tm_counters import TmCounters
 from obsw.tracking import Reference, TrackingLoop
 from obsw.trajectory import NominalTrajectory
+from obsw.uplink_watch import UplinkWatch
 from obsw.verification import TcVerification
+from obsw.wheel_health import WheelHealth
 
 TRACKING_MODES = (Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING)
 # attitude estimates kept to turn a frame's LOS with the attitude at its exposure: 6.4 s at 10 Hz, past the 1 s
 # latencies of bench/latency.py with room for a backlog of frames
 ATTITUDE_HISTORY_PERIODS = 64
 POINTING_MODES = (Mode.ACQUISITION, *TRACKING_MODES)
+ACTION_SEQ_BASE = 0x3F00  # sequence counts of the TCs the software builds for its own event actions
+AXIS_TOLERANCE = 1e-6  # a body axis farther than this from the wheels' span cannot be torqued
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,6 +102,24 @@ class WheelLimit:
 
     wheel: int
     momentum_nms: float
+
+
+def controllable_axes(axes: np.ndarray) -> int:
+    """Mask of the body axes (bit 0 x, 1 y, 2 z) the wheels of ``axes`` (3 x N, N may be 0) can torque."""
+    if axes.shape[1] == 0:
+        return 0
+    basis, sv, _ = np.linalg.svd(axes, full_matrices=False)
+    span = basis[:, sv > AXIS_TOLERANCE * max(float(sv[0]), 1.0)]
+    return sum(1 << i for i in range(3) if np.linalg.norm(np.eye(3)[i] - span @ (span.T @ np.eye(3)[i])) < 1e-6)
+
+
+def spans(axes: np.ndarray, vector: np.ndarray) -> bool:
+    """Whether the wheels of ``axes`` (3 x N) can torque the body about ``vector``."""
+    if axes.shape[1] == 0:
+        return False
+    v = vector / np.linalg.norm(vector)
+    coef = np.linalg.lstsq(axes, v, rcond=None)[0]
+    return bool(np.linalg.norm(axes @ coef - v) < AXIS_TOLERANCE)
 
 
 def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
@@ -121,9 +157,22 @@ class FlightSoftware:
         self.exposure_s = cfg.camera.exposure_s
         self._next_frame_obt: float | None = None
         self._counters = TmCounters()
+        self.attitude = AttitudeEstimator(cfg.attitude)
+        self.monitor = ParameterMonitor(cfg.monitoring)
+        self.actions = EventActions()
+        for i, a in enumerate(cfg.event_actions):
+            packet = pus.encode_tc(a.telecommand(), cfg.apid, ACTION_SEQ_BASE + i, source_id=cfg.onboard_source_id,
+                                   ack_flags=0)
+            self.actions.add([(pus.EventId[a.event], packet)], enabled=a.enabled)
+        self._actions_due: list[tuple[pus.EventId, bytes]] = []
+        self._in_action = False
+        self.frame_watch = FrameWatch(cfg.fdir)
+        self.lock_gate = LockGate(cfg.fdir)
+        self.uplink_watch = UplinkWatch(cfg.fdir.uplink_first_seq_count, cfg.fdir.uplink_seq_modulo)
+        self._safe_q: np.ndarray | None = None
+        self._last_frame_id = 0
         self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
         self._requester: int | None = None  # source id of the TC being executed: its responses go there
-        self._q_est: np.ndarray | None = None
         self._attitude_history: deque[tuple[float, np.ndarray]] = deque(maxlen=ATTITUDE_HISTORY_PERIODS)
         self.autonomous_trajectory: NominalTrajectory | None = None
         self._autonomous_count = -1
@@ -138,13 +187,26 @@ class FlightSoftware:
         self._log: list[str] = []
         self._tm: list[bytes] = []
         self._prev_obt: float | None = None
+        self._prev_time_frame = 0  # the executive's minor frame count when the time task last ran
         self._clock_adjust_s: float | None = None
         self.last_reference: Reference | None = None
         self.pointing_error_est_rad: float | None = None
         n_wheels = self.axes.shape[1]
+        self.wheel_health = WheelHealth(cfg.fdir, n_wheels, w.max_momentum_nms)
+        self.wheels_in_use = (1 << n_wheels) - 1
         # what the attitude task determined this period, for the tasks after it
         self._q = np.array([0.0, 0.0, 0.0, 1.0])
         self._omega = np.zeros(3)
+        self._bias = np.zeros(3)
+        self._attitude_sigma_rad = 0.0
+        self._star_tracker_out = False
+        self._outage_start: float | None = None
+        # the torques of the last reply and of the one before, and when the last took effect: what the wheels got
+        self._applied: tuple[np.ndarray, np.ndarray, float] = (np.zeros(n_wheels), np.zeros(n_wheels), 0.0)
+        self._impulse = np.zeros(n_wheels)  # impulse commanded to each wheel since the last momentum measured, N m s
+        self._impulse_s = 0.0  # the time it spans, s
+        self._measured_h = False  # the attitude task measured the wheel momenta this period
+        self._step_sequence = 0
         self._wheel_speed = np.zeros(n_wheels)
         self._wheel_h = np.zeros(n_wheels)
         self._torque = np.zeros(n_wheels)
@@ -178,6 +240,18 @@ class FlightSoftware:
             pus.TimeShiftActivities: self._time_shift,
             pus.SummaryReportRequest: self._summary_report,
             pus.DetailReportRequest: self._detail_report,
+            pus.EnableSchedule: self._enable_schedule,
+            pus.DisableSchedule: self._disable_schedule,
+            pus.SetWheelSet: self._set_wheel_set,
+            pus.EnableParameterMonitoring: lambda c, o: self.monitor.set_enabled(c.pmon_ids, True),
+            pus.DisableParameterMonitoring: lambda c, o: self.monitor.set_enabled(c.pmon_ids, False),
+            pus.AddParameterMonitoringDefinitions: lambda c, o: self.monitor.add(c.definitions),
+            pus.DeleteParameterMonitoringDefinitions: lambda c, o: self.monitor.delete(c.pmon_ids),
+            pus.ModifyParameterMonitoringDefinitions: lambda c, o: self.monitor.modify(c.definitions),
+            pus.AddEventActions: self._add_event_actions,
+            pus.DeleteEventActions: lambda c, o: self.actions.delete(c.event_ids),
+            pus.EnableEventActions: lambda c, o: self.actions.set_enabled(c.event_ids, True),
+            pus.DisableEventActions: lambda c, o: self.actions.set_enabled(c.event_ids, False),
         }
 
     # -- public ------------------------------------------------------------------------------------------
@@ -198,9 +272,17 @@ class FlightSoftware:
         self._time_status = pus.TimeReferenceStatus.FREE_RUNNING  # until the time task finds a step
         self._req = req
         self._frame_request_out = None
+        self._step_sequence = self.executive.sequence  # events posted from here on are on this tick's time scale
+        # the impulse of the period that ended at this tick: the torques before until the last reply's took effect
+        before, after, d = self._applied
+        self._impulse = self._impulse + before * d + after * (self.cfg.control_period_s - d)
+        self._impulse_s += self.cfg.control_period_s
+        self._measured_h = False
         for raw in req.uplink:
             self.executive.post(EventKind.TC_ARRIVED, tick, raw)
         meta = req.frame
+        if meta is not None:
+            self.frame_watch.delivered(meta.obt_s)
         if meta is not None and (frame is not None or meta.measurement is not None):
             # a frame, or at centroid-level fidelity the modelled output of its imaging chain, which takes as long
             n = self.cfg.imaging.binned_size_px
@@ -216,6 +298,7 @@ class FlightSoftware:
             self._event(pus.FrameOverrunEvent(minor_frame=report.minor_frame, late_s=late), next_tick,
                         f"minor frame {report.minor_frame} overran the next tick by {late * 1e3:.1f} ms")
         self._frame_overrunning = report.overrun
+        self._applied = (self._applied[1], self._torque.copy(), self._actuation_delay_s)
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
         return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in self._torque), clock_adjust_s=adjust,
                          frame_request=self._frame_request_out, downlink=tuple(self._tm),
@@ -234,7 +317,7 @@ class FlightSoftware:
             Task.RECOGNITION: TaskSpec(self._task_recognition, frozenset({e.MEASUREMENT}), periodic=False),
             Task.MODES: TaskSpec(self._task_modes, frozenset({e.MEASUREMENT})),
             Task.CONTROL: TaskSpec(self._task_control, frozenset({e.MEASUREMENT})),
-            Task.FDIR: TaskSpec(self._task_fdir, frozenset({e.PARAM_CHECK_FAILED}), periodic=False),
+            Task.FDIR: TaskSpec(self._task_fdir, frozenset({e.PARAM_CHECK_FAILED})),
             Task.CAMERA: TaskSpec(self._task_camera),
             Task.TELEMETRY: TaskSpec(self._task_telemetry),
         }
@@ -265,12 +348,16 @@ class FlightSoftware:
     def _task_time(self, act: Activation) -> Work:
         """Time management: an OBT step beyond the control period is reported; a time report when due."""
         tick = act.tick_s
-        dt = self.cfg.control_period_s
+        # the periods since this task last ran (a release skipped under overload is no jump)
+        dt = self.cfg.control_period_s * (self.executive.frames - self._prev_time_frame)
         if self._prev_obt is not None and abs(tick - self._prev_obt - dt) > self.cfg.clock_jump_threshold_s:
             jump = tick - self._prev_obt - dt
             self._time_status = pus.TimeReferenceStatus.STEPPED
             self._event(pus.ClockJumpEvent(step_s=jump), act.now_s, f"on-board time jumped by {jump:+.6f} s")
-        self._prev_obt = tick
+            moved = self._shift_time(jump)
+            self._event(pus.TimeShiftedEvent(step_s=jump, schedule_entries=min(moved, 0xFFFF)), act.now_s,
+                        f"everything held in OBT moved by {jump:+.6f} s ({moved} schedule entries)")
+        self._prev_obt, self._prev_time_frame = tick, self.executive.frames
         self._time_report(tick)
         return Work()
 
@@ -280,6 +367,11 @@ class FlightSoftware:
         for ev in tcs:
             packet = self._authenticated(ev.payload, act.now_s)  # type: ignore[arg-type]
             if packet is not None:
+                gap = self.uplink_watch.received(pus.request_id_of(packet).seq_count)
+                if gap is not None:
+                    self._event(pus.UplinkGapEvent(expected_seq=gap.expected_seq, received_seq=gap.received_seq,
+                                                   lost=min(gap.lost, 0xFFFF)), act.now_s,
+                                f"uplink: {gap.lost} telecommand(s) lost before sequence count {gap.received_seq}")
                 self._telecommand(packet, act.now_s, scheduled=False)
         return Work(commands=len(tcs))
 
@@ -287,6 +379,11 @@ class FlightSoftware:
         """The scheduled commands whose tag has come, in release order."""
         due = self.schedule.release_due(act.now_s)
         for entry in due:
+            late = act.now_s - entry.tag_obt_s
+            if late > self.cfg.control_period_s:
+                rid = pus.request_id_of(entry.payload)  # type: ignore[arg-type]
+                self._event(pus.LateReleaseEvent(request_id=rid, late_s=late), act.now_s,
+                            f"scheduled TC {rid.seq_count} released {late:.2f} s after its tag")
             self._telecommand(entry.payload, act.now_s, scheduled=True)  # type: ignore[arg-type]
         return Work(commands=len(due))
 
@@ -294,9 +391,26 @@ class FlightSoftware:
         """The attitude, rate and wheel momenta of this period."""
         req = self._req
         assert req is not None
-        self._q, self._omega = self._attitude(req, self.cfg.control_period_s)
+        st = req.sensors.star_tracker_q
+        est = self.attitude.step(np.asarray(req.sensors.gyro_rad_s, dtype=float),
+                                 None if st is None else np.asarray(st, dtype=float), self.cfg.control_period_s)
+        self._q, self._omega, self._bias, self._attitude_sigma_rad = est.q, est.omega_rad_s, est.bias_rad_s, est.sigma_rad
+        self._attitude_history.append((req.obt_s, est.q))
+        if est.outage != self._star_tracker_out:
+            self._star_tracker_out = est.outage
+            if est.outage:
+                self._outage_start = act.now_s - self.attitude.since_solution_s
+                self._event(pus.StarTrackerEvent(available=0, outage_s=0.0, attitude_sigma_rad=est.sigma_rad),
+                            act.now_s, "star tracker outage declared: attitude propagated with the gyro and the "
+                            f"estimated bias {np.degrees(est.bias_rad_s).round(4).tolist()} deg/s")
+            else:
+                lasted = act.now_s - (self._outage_start or act.now_s)
+                self._event(pus.StarTrackerEvent(severity=pus.Severity.INFO, available=1, outage_s=max(lasted, 0.0),
+                                                 attitude_sigma_rad=est.sigma_rad), act.now_s,
+                            f"star tracker solutions again after {lasted:.1f} s")
         self._wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
         self._wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ self._omega + self._wheel_speed)
+        self._measured_h = True
         return Work()
 
     def _task_imaging(self, act: Activation) -> Work:
@@ -346,18 +460,46 @@ class FlightSoftware:
         return Work()
 
     def _task_fdir(self, act: Activation) -> Work:
-        """Each failed parameter check reported and recovered: a wheel at its limit sends the spacecraft to SAFE."""
+        """Failure detection, isolation and recovery: each failed parameter check reported and recovered (a wheel at
+        its limit sends the spacecraft to SAFE); failed wheels found; the service 12 definitions checked; the service
+        19 actions of the events raised so far run."""
+        now = act.now_s
         checks = act.of(EventKind.PARAM_CHECK_FAILED)
         for ev in checks:
             w: WheelLimit = ev.payload  # type: ignore[assignment]
-            self._event(pus.WheelSaturationEvent(wheel=w.wheel, momentum_nms=w.momentum_nms), act.now_s,
+            self._event(pus.WheelSaturationEvent(wheel=w.wheel, momentum_nms=w.momentum_nms), now,
                         f"wheel {w.wheel} saturated at {w.momentum_nms:+.4f} N m s")
-            self._mode_event(self.modes.handle(WheelSaturation(w.wheel), act.now_s), act.now_s)
-        return Work(checks=len(checks))
+            self._mode_event(self.modes.handle(WheelSaturation(w.wheel), now), now)
+        failures = []
+        if self._measured_h:  # over the periods since the momenta were last measured (a skipped attitude task)
+            failures = self.wheel_health.update(self._wheel_h, self._impulse, self._impulse_s)
+            self._impulse, self._impulse_s = np.zeros_like(self._impulse), 0.0
+        for f in failures:
+            self._event(pus.WheelFailedEvent(wheel=f.wheel, commanded_nms=f.commanded_nms, measured_nms=f.measured_nms),
+                        now, f"wheel {f.wheel} failed: {f.commanded_nms:+.2e} N m s commanded over the window, "
+                        f"{f.measured_nms:+.2e} N m s measured")
+        transitions = self.monitor.check(self._parameters())
+        for t in transitions:
+            d = t.definition
+            self._event(pus.ParameterCheckEvent(severity=d.severity, pmon_id=d.pmon_id, parameter=d.parameter,
+                                                previous_status=t.previous, status=t.status, value=t.value,
+                                                limit=t.limit), now,
+                        f"monitoring {d.pmon_id} ({d.parameter.name}): {t.previous.name} -> {t.status.name}, value "
+                        f"{t.value:.6g}, limit {t.limit:.6g}")
+        actions = self._run_actions(now)
+        return Work(checks=len(checks) + len(transitions), commands=actions)
 
     def _task_camera(self, act: Activation) -> Work:
-        """A frame request when the imaging cadence is due."""
+        """A frame request when the imaging cadence is due; a frame requested and never delivered reported missing."""
+        overdue = self.frame_watch.overdue(act.tick_s)
+        if overdue is not None and self.frame_watch.anomaly(pus.FrameAnomaly.MISSING):
+            last = -1 if self.detections is None else self._last_frame_id
+            self._event(pus.FrameAnomalyEvent(anomaly=pus.FrameAnomaly.MISSING, frame_id=max(last, 0),
+                                              statistic=overdue), act.now_s,
+                        f"frame missing: requested {overdue:.2f} s ago, never delivered")
         self._frame_request_out = self._frame_request(act.tick_s)
+        if self._frame_request_out is not None:
+            self.frame_watch.requested(act.tick_s)
         return Work()
 
     def _task_telemetry(self, act: Activation) -> Work:
@@ -373,8 +515,82 @@ class FlightSoftware:
                                       time_status=self._time_status))
 
     def _event(self, event: pus.TmReport, obt: float, text: str) -> None:
+        """Report an event; its service 19 action, if one is enabled, runs in the FDIR task (not for the events of an
+        action itself)."""
         self._send(event, obt)
         self._log.append(f"OBT {obt:.2f} s: {text}")
+        if isinstance(event, pus.EventReport) and not self._in_action:
+            packet = self.actions.triggered(event.EVENT_ID)
+            if packet is not None:
+                self._actions_due.append((event.EVENT_ID, packet))
+
+    def _run_actions(self, obt: float) -> int:
+        """Run the service 19 actions of the events raised so far; the number run."""
+        due, self._actions_due = self._actions_due, []
+        self._in_action = True
+        try:
+            for event_id, packet in due:
+                self._log.append(f"OBT {obt:.2f} s: event-action: {event_id.name} runs TC {pus.decode_tc(packet)[1]!r}")
+                self._telecommand(packet, obt, scheduled=True)
+        finally:
+            self._in_action = False
+        return len(due)
+
+    def _parameters(self) -> dict[pus.Parameter, float | None]:
+        """The values of the parameters service 12 can monitor, this period."""
+        P = pus.Parameter
+        ex = self.executive
+        values: dict[pus.Parameter, float | None] = {
+            P.MODE: float(self.modes.mode), P.BODY_RATE: float(np.linalg.norm(self._omega)),
+            P.GYRO_BIAS: float(np.linalg.norm(self._bias)) if self.attitude.bias_known else None,
+            P.ATTITUDE_SIGMA: self._attitude_sigma_rad,
+            P.POINTING_ERROR: self.pointing_error_est_rad, P.TASK_OVERRUNS: float(ex.task_overruns),
+            P.FRAME_OVERRUNS: float(ex.frame_overruns), P.SKIPPED_RELEASES: float(ex.skipped),
+            P.TC_REJECTED_AUTH: float(self.security.housekeeping()["tc_rejected_auth"]),
+            P.FRAMES_DISCARDED: float(self.frame_watch.discarded), P.MEASUREMENTS_REJECTED: float(self.lock_gate.rejected),
+            P.EXPOSURE_TO_CENTROID: self._exposure_to_centroid_s,
+        }
+        for k in range(self.axes.shape[1]):
+            values[P[f"WHEEL_MOMENTUM_{k}"]] = float(self._wheel_h[k])
+            values[P[f"WHEEL_SPEED_{k}"]] = float(self._wheel_speed[k])
+        return values
+
+    def _shift_time(self, step_s: float) -> int:
+        """On-board time stepped by ``step_s``: move everything held in OBT with it (schedule tags and C/A anchor,
+        trajectories, recognition measurements, tracking loop, mode manager, histories, cadences, queued events),
+        so the physical times they stand for do not move; return the schedule entries moved."""
+        moved = self.schedule.shift_clock(step_s)
+        if self.trajectory is not None:
+            self.trajectory = self.trajectory.with_ca(self.trajectory.ca_time_obt_s + step_s,
+                                                      self.trajectory.ca_distance_km)
+        if self.recognizer is not None:
+            self.recognizer.shift_time(step_s)
+        self.autonomous_trajectory, self._autonomous_count = None, -1
+        self.tracking.shift_time(step_s)
+        self.modes.shift_time(step_s)
+        self.frame_watch.shift(step_s)
+        self.lock_gate.shift(step_s)
+        self._attitude_history = deque(((t + step_s, q) for t, q in self._attitude_history),
+                                       maxlen=ATTITUDE_HISTORY_PERIODS)
+        if self._last_seen_obt is not None:
+            self._last_seen_obt += step_s
+        if self._outage_start is not None:
+            self._outage_start += step_s
+        for name in ("_next_frame_obt", "_hk_next", "_time_report_next"):
+            if getattr(self, name) is not None:
+                setattr(self, name, getattr(self, name) + step_s)
+        self._estimate_next += step_s
+
+        def payload(kind: EventKind, p: object) -> object:
+            if kind == EventKind.FRAME_READY:
+                frame, meta = p  # type: ignore[misc]
+                return frame, meta.model_copy(update={"obt_s": meta.obt_s + step_s})
+            if kind == EventKind.MEASUREMENT:
+                return dataclasses.replace(p, exposure_obt_s=p.exposure_obt_s + step_s)  # type: ignore[type-var]
+            return p
+
+        self.executive.shift_time(step_s, self._step_sequence, payload)
+        return moved
 
     # -- telecommands --------------------------------------------------------------------------------------
     def _check_tc(self, payload: object) -> None:
@@ -410,7 +626,10 @@ class FlightSoftware:
             if failure is not None:  # the source id is unreadable: the report goes to the ground
                 self._send(failure, obt)
             return
-        verification = TcVerification(header, lambda report, dest: self._send(report, obt, dest))
+        if header.source_id == self.cfg.onboard_source_id:  # the software's own TC: its verification stays on board
+            verification = TcVerification(header, lambda report, dest: None)
+        else:
+            verification = TcVerification(header, lambda report, dest: self._send(report, obt, dest))
         verification.accepted()
         verification.started()
         self._requester = header.source_id
@@ -502,6 +721,45 @@ class FlightSoftware:
             raise CommandRejected(rejections[0].reason, "; ".join(
                 f"activity {r.index}: {r.text}" for r in rejections))
 
+    def _enable_schedule(self, cmd: pus.EnableSchedule, obt: float) -> None:
+        self.schedule.enabled = True
+        self._log.append(f"OBT {obt:.2f} s: time-based schedule enabled")
+
+    def _disable_schedule(self, cmd: pus.DisableSchedule, obt: float) -> None:
+        self.schedule.enabled = False
+        self._log.append(f"OBT {obt:.2f} s: time-based schedule disabled")
+
+    def _add_event_actions(self, cmd: pus.AddEventActions, obt: float) -> None:
+        for d in cmd.definitions:
+            self._check_tc(d.tc_packet)
+        self.actions.add([(d.event_id, d.tc_packet) for d in cmd.definitions])
+
+    def _set_wheel_set(self, cmd: pus.SetWheelSet, obt: float) -> None:
+        n = self.axes.shape[1]
+        full = (1 << n) - 1
+        if cmd.wheels & ~full:
+            raise CommandRejected(RejectReason.BAD_ARGUMENT, f"wheels: mask 0b{cmd.wheels:b} names a wheel beyond the "
+                                  f"{n} wheels")
+        mask = cmd.wheels or full & ~self.wheel_health.failed_mask
+        self.wheels_in_use = mask
+        in_use = self._in_use()
+        axes = controllable_axes(self.axes[:, in_use])
+        names = ", ".join(str(k) for k in range(n) if mask >> k & 1) or "none"
+        self._event(pus.WheelSetEvent(wheels_in_use=mask, wheels_failed=self.wheel_health.failed_mask,
+                                      controllable_axes=axes), obt,
+                    f"wheel set: {names} (axes {''.join(c for i, c in enumerate('xyz') if axes >> i & 1) or 'none'} "
+                    "controllable)")
+        slew = np.asarray(self.cfg.tracking.plane_normal_axis_body, dtype=float)
+        if self.modes.mode != Mode.SAFE and not spans(self.axes[:, in_use], slew):
+            why = f"wheels {names} cannot torque the slew axis ({', '.join(f'{c:g}' for c in slew)}) in body axes"
+            self._event(pus.FaultEvent(fault_code=pus.FaultCode.WHEELS_CANNOT_CONTROL, reason=why), obt,
+                        f"fault: {why}")
+            self._mode_event(self.modes.handle(Fault(why), obt), obt)
+
+    def _in_use(self) -> np.ndarray:
+        """Booleans of the wheels in use."""
+        return np.array([bool(self.wheels_in_use >> k & 1) for k in range(self.axes.shape[1])])
+
     def _delete_activities(self, cmd: pus.DeleteActivities, obt: float) -> None:
         self.schedule.delete(Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids)))
 
@@ -541,18 +799,6 @@ class FlightSoftware:
                          f"{traj.ca_distance_km:.2f} km")
 
     # -- attitude estimate ---------------------------------------------------------------------------------
-    def _attitude(self, req: StepRequest, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        omega = np.asarray(req.sensors.gyro_rad_s, dtype=float)
-        if req.sensors.star_tracker_q is not None:
-            q = np.asarray(req.sensors.star_tracker_q, dtype=float)
-        elif self._q_est is not None:  # outage: propagate the last estimate with the gyro
-            q = (Rotation.from_quat(self._q_est) * Rotation.from_rotvec(omega * dt)).as_quat()
-        else:
-            q = np.array([0.0, 0.0, 0.0, 1.0])
-        self._q_est = q / np.linalg.norm(q)
-        self._attitude_history.append((req.obt_s, self._q_est))
-        return self._q_est, omega
-
     def _attitude_at(self, obt_s: float) -> np.ndarray:
         """The attitude estimate of the control period nearest ``obt_s`` (a frame's exposure time)."""
         return min(self._attitude_history, key=lambda e: abs(e[0] - obt_s))[1]
@@ -561,7 +807,17 @@ class FlightSoftware:
     def _image(self, frame: np.ndarray | None, meta: FrameMeta, act: Activation) -> Detections:
         """Process a frame (at centroid-level fidelity, take its modelled detections); if Dimorphos is seen, emit its
         measured inertial LOS stamped with the exposure."""
+        obt = meta.obt_s
+        self._last_frame_id = meta.frame_id
+        fdir = self.cfg.fdir
         if frame is not None:
+            saturated = saturated_fraction(frame, self.camera.bit_depth, fdir.frame_sample_stride)
+            if saturated >= fdir.frame_saturated_fraction:  # nothing in it can be measured: not even processed
+                self._frame_anomaly(pus.FrameAnomaly.SATURATED, meta.frame_id, saturated, act.now_s)
+                return Detections(blobs=(), didymos=None, dimorphos=None, didymos_offset_px=None,
+                                  dimorphos_offset_px=None, didymos_offset_rad=None, dimorphos_offset_rad=None,
+                                  threshold_dn8=0, background_dn8=0, noise_sigma_dn8=0.0,
+                                  binned_size_px=self.cfg.imaging.binned_size_px)
             # what the frame should show, from the trajectory the camera follows and the attitude at the exposure
             prediction = predict_frame(self._attitude_at(meta.obt_s), self.cfg.targets, self.camera,
                                        self.cfg.imaging, self.pointing_trajectory(), meta.obt_s)
@@ -570,8 +826,13 @@ class FlightSoftware:
         else:
             assert meta.measurement is not None
             det = measured_detections(meta.measurement, self.cfg.imaging, self.camera)
+        seen_before = self.detections is not None and self.detections.dimorphos is not None
+        if seen_before and not any(b.area_px >= self.cfg.imaging.min_body_area_px for b in det.blobs):
+            peak = max((b.peak_dn8 - det.background_dn8 for b in det.blobs), default=0)
+            self._frame_anomaly(pus.FrameAnomaly.BLANK, meta.frame_id, float(peak), act.now_s)
+            return det  # the previous detections stay the reference of the chain's continuity
+        self.frame_watch.good()
         self.detections = det
-        obt = meta.obt_s
         if det.dimorphos is None or det.dimorphos_offset_px is None:
             self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=None,
                                             didymos_col_row=_col_row(det.didymos), dimorphos_area_px=0,
@@ -580,12 +841,35 @@ class FlightSoftware:
         d_col, d_row = det.dimorphos_offset_px
         los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
         los_i = Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
-        self._last_seen_obt = obt
-        act.emit(EventKind.MEASUREMENT, Measurement(obt, los_i, meta.frame_id))
+        gate = self.lock_gate.check(self._recognised_trajectory(), obt, los_i)
+        if not gate.accepted:
+            if self.lock_gate.run == 1:
+                self._event(pus.FalseLockEvent(frame_id=meta.frame_id, offset_rad=gate.innovation_rad,
+                                               gate_rad=gate.gate_rad), act.now_s,
+                            f"false lock: frame {meta.frame_id}'s target moved {np.degrees(gate.innovation_rad):.3f} "
+                            f"deg from the recognised trajectory's prediction (gate {np.degrees(gate.gate_rad):.3f} "
+                            "deg): its line of sight is refused")
+            self.detections = None  # the chain identifies afresh rather than by continuity with the false target
+        else:
+            self._last_seen_obt = obt
+            act.emit(EventKind.MEASUREMENT, Measurement(obt, los_i, meta.frame_id))
         self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=det.dimorphos.centroid_col_row,
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
         return det
+
+    def _recognised_trajectory(self) -> NominalTrajectory | None:
+        """The trajectory recognised on board, once it is trusted (None before)."""
+        rec = self.recognizer
+        if rec is None or rec.measurement_count < self.cfg.min_recognition_measurements:
+            return None
+        return rec.continuous_trajectory() if self.cfg.autonomy_estimate == "continuous" else rec.best_trajectory()
+
+    def _frame_anomaly(self, kind: pus.FrameAnomaly, frame_id: int, statistic: float, now: float) -> None:
+        """Count a discarded frame; report the first of a run of them."""
+        if self.frame_watch.anomaly(kind):
+            self._event(pus.FrameAnomalyEvent(anomaly=kind, frame_id=frame_id, statistic=statistic), now,
+                        f"frame {frame_id} {kind.name.lower()} ({statistic:.3g}): discarded")
 
     def _tick_s(self) -> float:
         """OBT of this minor frame's tick."""
@@ -621,6 +905,10 @@ class FlightSoftware:
                              f"{len(moved)} C/A-relative command(s) re-anchored")
         if ev.to_mode in (Mode.STANDBY, Mode.SAFE):
             self.imaging = False
+        if ev.to_mode == Mode.SAFE:  # hold the attitude of entry; no scheduled command runs until ground says so
+            self._safe_q = self._q.copy()
+            self.schedule.enabled = False
+            self._log.append(f"OBT {obt:.2f} s: SAFE: attitude held, time-based schedule disabled")
 
     def best_estimate(self) -> tuple[float, float]:
         """(C/A time OBT s, C/A distance km) of the best trajectory recognised on board."""
@@ -668,6 +956,9 @@ class FlightSoftware:
                                        measured_obt_s=taken,
                                        extrapolate=tc.autonomous_extrapolation or not autonomous,
                                        gate_rad=math.radians(tc.autonomous_gate_deg) if autonomous else None)
+        elif self.modes.mode == Mode.SAFE and self._safe_q is not None:  # the attitude of SAFE's entry, at rest
+            self.tracking.reset()
+            ref = Reference(q_des=self._safe_q, omega_des_body=np.zeros(3), alpha_des_body=np.zeros(3))
         else:  # hold the current attitude, rate to zero
             if self.last_reference is None or self.modes.mode not in (Mode.STANDBY, Mode.SAFE):
                 self.tracking.reset()
@@ -679,7 +970,8 @@ class FlightSoftware:
             boresight = Rotation.from_quat(q_exposure).apply(np.asarray(self.camera.boresight_body, dtype=float))
             self.pointing_error_est_rad = float(np.arccos(np.clip(boresight @ seen.los_inertial, -1, 1)))
         body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)
-        tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms)
+        tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms,
+                               self._in_use())
         if not np.all(np.isfinite(tau)):
             raise InternalFault(f"non-finite wheel torque {tau.tolist()} at OBT {obt}")
         return tau
@@ -713,7 +1005,10 @@ class FlightSoftware:
                 task_time_max_s=tuple(ex.max_execution_s[t] for t in Task),
                 exposure_to_centroid_s=self._exposure_to_centroid_s, centroid_to_torque_s=self._centroid_to_torque_s,
                 task_overruns=ex.task_overruns, frame_overruns=ex.frame_overruns, skipped_releases=ex.skipped,
-                **self.security.housekeeping()), obt)
+                gyro_bias_rad_s=tuple(float(c) for c in self._bias), attitude_sigma_rad=self._attitude_sigma_rad,
+                wheels_in_use=self.wheels_in_use, wheels_failed=self.wheel_health.failed_mask,
+                frames_discarded=min(self.frame_watch.discarded, 0xFFFF),
+                measurements_rejected=min(self.lock_gate.rejected, 0xFFFF), **self.security.housekeeping()), obt)
             sent += 1
         if self.recognizer is not None and self.recognizer.measurement_count > 0 and obt >= self._estimate_next:
             self._estimate_next = obt + self.cfg.housekeeping_period_s

@@ -63,8 +63,8 @@ class TimingConfig(Config):
     )
     schedule_s: float = Field(50e-6, ge=0, description=f"schedule check when a tag is due, s: 2,500 cycles of {_LEON}")
     attitude_s: float = Field(
-        0.1e-3, ge=0, description=f"attitude determination, s: quaternion read or gyro propagation and wheel "
-        f"momenta, 5,000 cycles of {_LEON}"
+        0.6e-3, ge=0, description=f"attitude determination, s: the multiplicative EKF's propagation and star tracker "
+        f"update (6-state covariance, 3x3 gain) and the wheel momenta, 30,000 cycles of {_LEON}"
     )
     imaging_s: float = Field(0.3e-3, ge=0, description=f"software stage of the imaging chain per frame, s: "
                              f"identification and line of sight, 15,000 cycles of {_LEON}")
@@ -91,8 +91,10 @@ class TimingConfig(Config):
         0.8e-3, ge=0, description=f"tracking loop and PD control, s: the loop's matrix exponential, two rotation "
         f"matrices, the control law and the wheel allocation, 40,000 cycles of {_LEON}"
     )
-    fdir_s: float = Field(50e-6, ge=0, description=f"FDIR per failed parameter check handled, s: 2,500 cycles of "
-                          f"{_LEON}")
+    fdir_s: float = Field(0.1e-3, ge=0, description=f"FDIR each minor frame, s: the wheel failure detector and the "
+                          f"service 12 checks of a few definitions, 5,000 cycles of {_LEON}")
+    fdir_s_per_check: float = Field(50e-6, ge=0, description=f"FDIR per failed parameter check or check transition "
+                                    f"handled, s: its event report, 2,500 cycles of {_LEON}")
     camera_s: float = Field(20e-6, ge=0, description=f"camera commanding, s: 1,000 cycles of {_LEON}")
     telemetry_s: float = Field(50e-6, ge=0, description=f"telemetry task, s: 2,500 cycles of {_LEON}")
     telemetry_s_per_packet: float = Field(
@@ -111,7 +113,7 @@ class Work:
     frames: int = 0  # frames processed
     candidates: int = 0  # grid candidates updated (candidates x new measurements)
     measurements: int = 0  # measurements in a continuous solve (0: not solved)
-    checks: int = 0  # failed parameter checks handled
+    checks: int = 0  # failed parameter checks and check transitions handled
     packets: int = 0  # report packets built
 
 
@@ -144,8 +146,8 @@ class TimingModel:
             return c.modes_s
         if task == Task.CONTROL:
             return c.control_s
-        if task == Task.FDIR:
-            return c.fdir_s * work.checks
+        if task == Task.FDIR:  # with the telecommands of the event actions it runs
+            return c.fdir_s + c.fdir_s_per_check * work.checks + c.telecommand_s * work.commands
         if task == Task.CAMERA:
             return c.camera_s
         return c.telemetry_s + c.telemetry_s_per_packet * work.packets

@@ -208,6 +208,16 @@ class TrackingLoop:
         self.rejected_count = 0  # measurements ignored by the gate since the last reset
         self._rejected_run = 0  # consecutive measurements ignored by the gate
 
+    def shift_time(self, step_s: float) -> None:
+        """On-board time stepped by ``step_s``: the OBTs held (the loop's, the measurements', the trajectory's C/A)
+        move with it, so the loop goes on as if nothing happened (its own time runs on the control period)."""
+        if self._obt is not None:
+            self._obt += step_s
+        self._meas = [(t, obt + step_s, los) for t, obt, los in self._meas]
+        if self._trajectory is not None:
+            self._trajectory = self._trajectory.with_ca(self._trajectory.ca_time_obt_s + step_s,
+                                                        self._trajectory.ca_distance_km)
+
     @property
     def last_measurement_obt_s(self) -> float | None:
         """OBT the last measurement taken by the loop refers to (its exposure, as given), or None."""

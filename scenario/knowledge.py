@@ -29,6 +29,8 @@ KNOWLEDGE_PAIRS: tuple[tuple[str, str], ...] = (
     ("obsw.targets.dimorphos_diameter_m", "universe.bodies.dimorphos_diameter_m"),
     ("obsw.targets.orbit_radius_m", "universe.bodies.orbit_radius_m"),
     ("obsw.targets.sun_direction_inertial", "universe.bodies.sun_direction"),
+    ("obsw.attitude.star_tracker_noise_arcsec", "universe.sensors.star_tracker.noise_arcsec"),
+    ("obsw.attitude.gyro_arw_deg_sqrt_h", "universe.sensors.gyro.arw_deg_sqrt_h"),
     ("ground.link.one_way_light_time_s", "universe.link.one_way_light_time_s"),
     ("ground.link.downlink_rate_bps", "universe.link.downlink_rate_bps"),
     ("ground.link.uplink_rate_bps", "universe.link.uplink_rate_bps"),

@@ -22,6 +22,7 @@ from contracts.textfile import TextFileError, load_yaml, read_text
 from ground.config import GroundConfig
 from obsw.config import ObswConfig
 from scenario.dispersions import Dispersion, dispersion_problems
+from scenario.expectation import Expectation
 from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
 from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
@@ -48,6 +49,8 @@ class Scenario(Config):
     dispersions: tuple[Dispersion, ...] = Field(
         (), description="fields drawn anew for each run of a Monte Carlo campaign (flyby mc; see scenario.dispersions); "
         "a single run (flyby run) uses the nominal values")
+    expect: Expectation | None = Field(None, description="what a fault campaign expects of the run "
+                                       "(scenario.expectation; flyby campaign)")
     knowledge_errors: tuple[str, ...] = Field(
         (),
         description="knowing fields (obsw.*, ground.link.*) allowed to differ from the truth they know, as dotted "

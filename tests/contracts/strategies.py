@@ -16,7 +16,7 @@ from hypothesis import assume
 from hypothesis import strategies as st
 
 from contracts import pus
-from contracts.dictionary import DICTIONARY, SetCameraCadence, UploadNominalTrajectory
+from contracts.dictionary import DICTIONARY, CheckType, MonitoringDefinition, SetCameraCadence, UploadNominalTrajectory
 from contracts.packet import Item, Packet, Record, RecordWire
 from contracts.packet_errors import MAX_APID, MAX_SEQ_COUNT, RequestId
 from contracts.wire import (
@@ -154,9 +154,19 @@ def _cadences() -> st.SearchStrategy[SetCameraCadence]:
         lambda kw: SetCameraCadence(**kw))
 
 
+@st.composite
+def _monitoring_definitions(draw: st.DrawFn) -> MonitoringDefinition:
+    """A monitoring definition whose limits are ordered (an expected-value check repeats its value)."""
+    kw = draw(_fields(MonitoringDefinition))
+    low, high = sorted((kw["low"], kw["high"]))
+    kw["low"], kw["high"] = (low, low) if kw["check_type"] == CheckType.EXPECTED_VALUE else (low, high)
+    return MonitoringDefinition(**kw)
+
+
 OVERRIDES: dict[type, Callable[[], st.SearchStrategy[Any]]] = {
     UploadNominalTrajectory: _trajectories,
     SetCameraCadence: _cadences,
+    MonitoringDefinition: _monitoring_definitions,
 }
 
 # TC packets to schedule: any telecommand that does not itself carry packets

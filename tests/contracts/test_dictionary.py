@@ -59,13 +59,14 @@ def test_documentation_lists_every_packet_and_field() -> None:
 
 def test_documentation_gives_offsets_of_fixed_layouts() -> None:
     """A fixed layout's offsets add up its fields' sizes: housekeeping's best-grid MSE starts at octet 81, the TC
-    security counters at 85, and its last field at octet 195 of 199."""
+    security counters at 85, the executive's skipped releases at 195 and its last field at octet 219 of 221."""
     doc = markdown()
     section = doc.split("## TM[3,25] Housekeeping\n", 1)[1].split("\n## ", 1)[0]
     assert "| 81 | best_mse_rad2 | f32 | rad^2 |" in section
     assert "| 89 | tc_rejected_replay | u16 |" in section
     assert "| 195 | skipped_releases | u32 |" in section
-    assert pus.HK_SIZE == 199
+    assert "| 219 | measurements_rejected | u16 |" in section
+    assert pus.HK_SIZE == 221
 
 
 def test_timeline_commands_are_the_dictionarys() -> None:

@@ -114,8 +114,9 @@ def test_float32_fields_round_to_nearest_float32(x: float) -> None:
 
 
 def test_housekeeping_layout_is_as_documented() -> None:
-    """HK source data is 199 octets at the documented offsets (85 of navigation, three u16 TC security counters,
-    then 11 + 11 task times, two latencies and three u32 counters); the whole packet is 6 + 14 + 199 + 2 octets."""
+    """HK source data is 221 octets at the documented offsets (85 of navigation, three u16 TC security counters,
+    then 11 + 11 task times, two latencies, three u32 counters, the estimated gyro bias and attitude sigma, the wheel
+    masks and two u16 FDIR counters); the whole packet is 6 + 14 + 221 + 2 octets."""
     last = tuple(1e-4 * (k + 1) for k in range(11))
     hk = Housekeeping(
         mode=Mode.AUTONOMOUS_TRACKING,
@@ -134,12 +135,18 @@ def test_housekeeping_layout_is_as_documented() -> None:
         task_overruns=7,
         frame_overruns=3,
         skipped_releases=65536,
+        gyro_bias_rad_s=(1.0, -2.0, 0.5),
+        attitude_sigma_rad=0.25,
+        wheels_in_use=0b1011,
+        wheels_failed=0b0100,
+        frames_discarded=9,
+        measurements_rejected=513,
     )
-    assert HK_SIZE == 199
+    assert HK_SIZE == 221
     raw = encode_tm(hk, 0xC1, 1, 100.0, 0)
-    assert len(raw) == 6 + 7 + 7 + 199 + 2 == 221
+    assert len(raw) == 6 + 7 + 7 + 221 + 2 == 243
     d = raw[20:-2]
-    assert len(d) == 199
+    assert len(d) == 221
     assert struct.unpack(">H", d[0:2]) == (1,)
     assert (d[2], d[3], d[4]) == (4, 0b10011, 3)
     assert struct.unpack(">4f", d[5:21]) == (0.5, -0.5, 0.25, 0.625)
@@ -154,6 +161,9 @@ def test_housekeeping_layout_is_as_documented() -> None:
     assert struct.unpack(">11f", d[135:179]) == pytest.approx(tuple(2 * x for x in last), rel=1e-7)
     assert math.isnan(struct.unpack(">f", d[179:183])[0]) and struct.unpack(">f", d[183:187]) == (0.25,)
     assert struct.unpack(">3I", d[187:199]) == (7, 3, 65536)
+    assert struct.unpack(">4f", d[199:215]) == (1.0, -2.0, 0.5, 0.25)
+    assert (d[215], d[216]) == (0b1011, 0b0100)
+    assert struct.unpack(">2H", d[217:221]) == (9, 513)
 
 
 def test_navigation_report_is_49_octets() -> None:

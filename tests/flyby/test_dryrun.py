@@ -1,5 +1,6 @@
-"""The timeline dry run: it flags the early-knowledge case (the C/A-240 s rows already past at upload) and passes the
-nominal, with release times where ground's tags and the on-board re-anchoring put them."""
+"""The timeline dry run: it warns of the early-knowledge case (the C/A-240 s rows already past at upload, uploaded and
+released on arrival) and passes the nominal, with release times where ground's tags and the on-board re-anchoring put
+them."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG
+from contracts.exitcodes import EXIT_CONFIG
 from flyby.cli import main
 from flyby.dryrun import CaseResult, _insert_refusals, cases, dry_run, rehearsal_scenario
 from scenario import compose
@@ -63,7 +64,8 @@ def test_case_world_is_grounds_belief_moved_by_the_case(tmp_path: Path) -> None:
 
 def test_early_knowledge_is_flagged(capsys: pytest.CaptureFixture[str]) -> None:
     """Ground's C/A 23.6 s early: the rows whose C/A tag falls before upload + light time + margin (computed here from
-    the scenario) are refused by ground in every case, and the dry run exits 4."""
+    the scenario) are uploaded late with a warning in every case, and released on board on arrival: the flyby
+    passes."""
     sc = load_scenario(EARLY)
     timeline = load_timeline(TIMELINE)
     g = sc.ground
@@ -75,10 +77,10 @@ def test_early_knowledge_is_flagged(capsys: pytest.CaptureFixture[str]) -> None:
     assert late == [1, 2]  # the C/A-240 s pair: the case this scenario reproduces
     code = main(["ground", "--dry-run", str(TIMELINE), "--scenario", str(EARLY), "--jobs", "2"])
     out = capsys.readouterr().out
-    assert code == EXIT_CHECK_FAILED, out
-    assert out.count("REFUSED: refused by ground at upload") == len(late) * len(cases())
+    assert code == 0, out
+    assert out.count("executed LATE: uploaded after its time, released on arrival") == len(late) * len(cases())
     for row in late:
-        assert f"row {row} (" in out.split("FAIL:")[-1] and f"in {len(cases())} of {len(cases())} cases" in out
+        assert f"WARNING: row {row} (" in out and f"in {len(cases())} of {len(cases())} cases" in out
 
 
 def test_nominal_passes(nominal: tuple[Scenario, Timeline, list[CaseResult]]) -> None:

@@ -217,7 +217,7 @@ def test_frame_faults_and_a_clock_jump_replay_identically(tmp_path: Path) -> Non
     d = scenario.model_dump(mode="json")
     d["universe"]["faults"] = [
         {"kind": "clock_jump", "start_s": 120.05, "end_s": 120.05, "magnitude": 2.5},
-        {"kind": "frame_lost", "start_s": 121.0, "end_s": 122.5},
+        {"kind": "frame_lost", "start_s": 121.0, "end_s": 122.9},  # frames at x.8 s: the jump moves no frame
         {"kind": "frame_blank", "start_s": 123.0, "end_s": 124.5},
         {"kind": "plume_brightening", "start_s": 125.0, "end_s": 130.0, "magnitude": 3.0}]
     scenario = scenario_from_dict(d)

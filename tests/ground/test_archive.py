@@ -13,6 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from contracts.pus import (
+    FaultCode,
     FaultEvent,
     Housekeeping,
     Mode,
@@ -56,7 +57,7 @@ def test_every_packet_is_stored_and_counted(tmp_path: Path) -> None:
         PingReply(),
         TimeReport(obt_s=12.5),
         ModeChangedEvent(from_mode=Mode.STANDBY, to_mode=Mode.ACQUISITION, cause="C/A-240 s"),
-        FaultEvent(fault_code=3, reason="wheel 2 stuck"),
+        FaultEvent(fault_code=FaultCode.WHEELS_CANNOT_CONTROL, reason="wheel 2 stuck"),
         Verification(stage=Stage.ACCEPTANCE, request_id=RequestId(apid=APID, seq_count=4)),
         _hk(2),
     ]

@@ -59,23 +59,27 @@ def test_trajectory_upload_uses_the_correlation() -> None:
         trajectory_request(yaml.safe_dump({"ca_distance_km": 54.0}).encode(), seg)
 
 
-def test_timeline_upload_refuses_late_commands() -> None:
-    """A timeline with one command too late for the light time uploads the rest and says which was refused."""
+def test_timeline_upload_refuses_late_absolute_commands_and_warns_of_late_ca_relative_ones() -> None:
+    """A timeline with commands too late for the light time: the one on an absolute tag is refused, the one tied to C/A
+    is uploaded all the same (the spacecraft releases it on arrival); a WARNING line names each."""
     seg = compose.ground_segment(scenario_from_dict({"name": "x"}))
+    now_obt = seg.correlation.to_obt(0.0)
     text = yaml.safe_dump({"commands": [
         {"time": "CA-300s", "command": "stop_imaging"},
         {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},
+        {"time": f"OBT {now_obt + 10.0}", "command": "set_mode", "args": {"mode": "STANDBY"}},
     ]}).encode()
-    # at UTC 0 with 33.4 s light time, C/A-300 s (about -130 s) is already past
+    # at UTC 0 with 33.4 s light time, C/A-300 s (about -130 s) and OBT now + 10 s are already past on arrival
     inserts, notes = timeline_request(text, "t.yaml", seg, utc_s=0.0)
-    assert [len(i.activities) for i in inserts] == [1]
-    assert isinstance(inserts[0], pus.InsertCaRelativeActivities)
-    assert any("row 1" in n for n in notes)
+    assert [(type(i), len(i.activities)) for i in inserts] == [(pus.InsertCaRelativeActivities, 2)]
+    assert [n.split(":")[0] for n in notes] == ["WARNING", "WARNING"]
+    assert any("row 1" in n and "released on arrival" in n for n in notes)
+    assert any("row 3" in n and "refused" in n for n in notes)
 
 
 def test_timeline_upload_records_every_row() -> None:
     """Ground's upload record gives each row its resolved OBT (C/A + offset by the correlation), the sequence count
-    of its telecommand in the insert, or the reason it was refused."""
+    of its telecommand in the insert, and for a row tied to C/A due before it can arrive, why it is late."""
     seg = compose.ground_segment(scenario_from_dict({"name": "x"}))
     text = yaml.safe_dump({"commands": [
         {"time": "CA-100s", "command": "start_imaging", "args": {"period_s": 1.0}},
@@ -92,9 +96,9 @@ def test_timeline_upload_records_every_row() -> None:
     assert [r.command for r in up.rows] == ["start_imaging", "stop_imaging", "set_mode"]
     assert [r.ca_offset_s for r in up.rows] == [-100.0, -300.0, -295.0]
     assert [r.obt_s for r in up.rows] == pytest.approx([ca_obt - 100.0, ca_obt - 300.0, ca_obt - 295.0])
-    assert up.rows[0].refused is None and up.rows[1].refused and up.rows[2].refused
-    assert "row 2" in up.rows[1].refused and "earliest allowed OBT" in up.rows[1].refused
+    assert [r.refused for r in up.rows] == [None, None, None]  # tied to C/A: uploaded, late ones released on arrival
+    assert up.rows[0].late is None and up.rows[1].late and up.rows[2].late
+    assert "row 2" in up.rows[1].late and "earliest allowed OBT" in up.rows[1].late
     (insert,) = inserts  # C/A-relative rows only: one mission-subservice insert
-    (act,) = insert.activities
-    assert up.rows[0].seq_count == pus.request_id_of(act.tc_packet).seq_count
-    assert up.rows[1].seq_count is None and up.rows[2].seq_count is None
+    seq_of_offset = {a.ca_offset_s: pus.request_id_of(a.tc_packet).seq_count for a in insert.activities}
+    assert [r.seq_count for r in up.rows] == [seq_of_offset[r.ca_offset_s] for r in up.rows]

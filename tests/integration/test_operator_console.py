@@ -36,13 +36,14 @@ def test_operator_console_on_a_live_run(tmp_path: Path) -> None:
 
 
 def test_dry_run_first_keeps_a_refused_timeline_on_the_ground(tmp_path: Path) -> None:
-    """--upload-timeline with --dry-run-first rehearses from ground's current UTC; a row already past is predicted
-    refused, so nothing is uploaded (exit 4) and the ground node never sees the request."""
+    """--upload-timeline with --dry-run-first rehearses from ground's current UTC; a row on an absolute tag already
+    past is predicted refused, so nothing is uploaded (exit 4) and the ground node never sees the request (a row tied
+    to C/A would be uploaded late and released on arrival)."""
     creds = tmp_path / "credentials"
     write_credentials(creds)
     procs, ep, run_id = start_nodes(tmp_path, DATA / "operator.yaml", realtime=True, credentials=creds)
     past = tmp_path / "past.yaml"
-    past.write_text("commands:\n  - {time: CA-300s, command: stop_imaging}\n")
+    past.write_text("commands:\n  - {time: OBT 1000, command: stop_imaging}\n")
     try:
         r = flyby("ground", "--connect", ep["ground"], "--run-id", run_id, "--credentials", str(creds),
                   "--upload-timeline", str(past),

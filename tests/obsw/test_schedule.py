@@ -149,6 +149,16 @@ def test_reanchor_into_the_past_releases_late_not_twice() -> None:
     assert s.release_due(1e6) == []
 
 
+def test_a_ca_relative_entry_already_past_is_taken_and_released_at_the_next_tick() -> None:
+    """A C/A-relative entry arriving after its tag (or within the margin) was meant for before now: it is accepted
+    and released at the next tick with its tag; an absolute tag in the past is still refused."""
+    s = TimeBasedSchedule(capacity=10, margin_s=1.0)
+    rejected = s.insert(100.0, [_req(1, 90.0, ca_offset_s=-240.0), _req(2, 100.5, ca_offset_s=-229.5), _req(3, 90.0)])
+    assert [(r.index, r.reason) for r in rejected] == [(2, RejectReason.TAG_IN_PAST)]
+    assert [(e.request_id, e.tag_obt_s) for e in s.release_due(100.1)] == [(1, 90.0)]
+    assert [e.request_id for e in s.release_due(100.5)] == [2]
+
+
 def test_internal_times_must_be_finite() -> None:
     """A non-finite on-board time or C/A estimate is an InternalFault, not a ground rejection."""
     s = TimeBasedSchedule(capacity=1, margin_s=0.0)
@@ -283,9 +293,9 @@ class ScheduleVersusModel(RuleBasedStateMachine):
                 expected.append((index, RejectReason.DUPLICATE_REQUEST))
                 continue
             eff = self.anchor + off if (off is not None and self.anchor is not None) else tag
-            if eff < self.now:
+            if off is None and eff < self.now:  # a C/A-relative tag already past is taken and released late
                 expected.append((index, RejectReason.TAG_IN_PAST))
-            elif eff < self.now + self.MARGIN:
+            elif off is None and eff < self.now + self.MARGIN:
                 expected.append((index, RejectReason.TAG_WITHIN_MARGIN))
             elif len(self.model) >= self.CAPACITY:
                 expected.append((index, RejectReason.SCHEDULE_FULL))
@@ -349,6 +359,26 @@ class ScheduleVersusModel(RuleBasedStateMachine):
     def clock_jump(self, delta: float) -> None:
         """OBT steps (backwards too) without a scheduler tick."""
         self.now += delta
+
+    @rule(delta=st.floats(-30.0, 30.0))
+    def clock_jump_followed(self, delta: float) -> None:
+        """OBT steps and the schedule is told: every tag and the anchor move with it, so nothing falls due."""
+        self.now += delta
+        assert self.sched.shift_clock(delta) == len(self.model)
+        for m in self.model:
+            m["tag"] += delta
+        if self.anchor is not None:
+            self.anchor += delta
+
+    @rule(enabled=st.booleans(), dt=st.floats(0.0, 10.0))
+    def disabled_tick(self, enabled: bool, dt: float) -> None:
+        """A disabled schedule releases nothing and names no next tag; enabled again, it releases what is due."""
+        self.sched.enabled = False
+        self.now += dt
+        assert self.sched.release_due(self.now) == [] and self.sched.next_tag_obt_s is None
+        self.sched.enabled = True
+        if enabled:
+            self._tick(0.0)
 
     @rule(dt=st.floats(0.0, 3.0))
     def tick(self, dt: float) -> None:

@@ -51,7 +51,7 @@ def test_execution_times_are_fixed_plus_per_unit_of_work(commands, regions, pixe
         + c.recognition_s_per_measurement * measurements,
         Task.MODES: c.modes_s,
         Task.CONTROL: c.control_s,
-        Task.FDIR: c.fdir_s * checks,
+        Task.FDIR: c.fdir_s + c.fdir_s_per_check * checks + c.telecommand_s * commands,
         Task.CAMERA: c.camera_s,
         Task.TELEMETRY: c.telemetry_s + c.telemetry_s_per_packet * packets,
     }

@@ -2,8 +2,8 @@
 telemetry (housekeeping by its zero-time fields), torques, frames, uplink and truth recorded from the flight
 software before the executive (commit a3c702c; recorded again at 30b1117, after the PUS-C and TC authentication
 changes, with the in-process keys fixed by the seed; recorded again with the camera's detector on and the imaging
-chain robust to it: telemetry, replies and truth from the zero-time flight software of branch img before it took the
-executive, the uplink's MACs from the in-process keys fixed by the seed), for the same seed.
+chain robust to it, and with the attitude estimator (a multiplicative EKF that filters the star tracker and removes
+the estimated gyro bias) and on-board FDIR, both changes of flight behaviour on purpose), for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -29,10 +29,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "2ebbb94965f4f02f76fa30c13532b03547373548007ab83217a3213e762611b1",
-    "replies": "95624c626b450d562fa7dda9bb008251239422cfb6ef96530322f32ce61151c0",
+    "tm": "48b518ff11d42f103de23fb3e2dcea3c4119c72887093346619f468cd3e983ff",
+    "replies": "9bfe4af4a35fdf4002c5afba10a07e503c9579c028d43c095f95981003acc31c",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "055f0f19abc90df74e96ee38aa6431a3b100cddba4d63cb8d133514f49a33b3f",
+    "truth": "1aa7432acf6edcb2673f8d75aba07baeb685e2b5dceac1e3ce41c830b5b7b41e",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,

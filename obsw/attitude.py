@@ -1,0 +1,180 @@
+"""Attitude determination: a multiplicative extended Kalman filter (MEKF) on the star tracker and the gyro.
+
+The state is the attitude quaternion ``q`` (body -> inertial, scalar-last) and the gyro bias ``b`` (rad/s, body);
+the filter (``filterpy.kalman.KalmanFilter``) holds the covariance of their small errors, ``x = [dtheta, db]``, with
+the true attitude ``q (x) exp(dtheta)`` (``dtheta`` in body axes) and the true bias ``b + db``. Between star tracker
+solutions the attitude is propagated with the gyro rate (the mean of the period's two readings) less the estimated
+bias; the error obeys
+
+    dtheta' = -[w x] dtheta - db - n_v,        db' = n_u,
+
+with ``n_v`` the gyro's angle random walk and ``n_u`` the rate random walk the filter allows for its bias. A star
+tracker solution measures ``dtheta`` directly (its noise is a small rotation about the tracker's body axes), so the
+error is folded into ``q`` and ``b`` after each update and ``x`` goes back to zero.
+
+With ``w = 0`` the propagation is exact: over ``t`` without a solution the attitude variance of an axis grows as
+``P_tt - 2 P_tb t + P_bb t^2 + s_v^2 t + s_u^2 t^3 / 3`` (the tests check this closed form), and a constant bias is
+observed from the drift of the solutions, its variance going as that of the slope of a line fitted to them.
+
+A reading equal to the last one is a tracker slower than the control holding its solution: it is not taken twice.
+An outage is declared when the tracker has given no reading for ``cfg.outage_after_s``; the attitude is then
+propagated alone and its uncertainty grows as above. Pure: time and readings come as arguments.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from filterpy.kalman import KalmanFilter
+from numpy.typing import NDArray
+
+from obsw.config import AttitudeConfig
+
+ARCSEC_RAD = math.pi / (180.0 * 3600.0)
+DEG_SQRT_H_RAD_SQRT_S = math.pi / 180.0 / 60.0  # 1 deg/sqrt(h) = 1/60 deg/sqrt(s)
+_IDENTITY_Q = np.array([0.0, 0.0, 0.0, 1.0])
+
+
+def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def quaternion_product(p: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Hamilton product ``p (x) q`` of scalar-last quaternions (rotate by ``q``, then by ``p``)."""
+    px, py, pz, pw = p
+    qx, qy, qz, qw = q
+    return np.array([pw * qx + px * qw + py * qz - pz * qy, pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw, pw * qw - px * qx - py * qy - pz * qz])
+
+
+def quaternion_of_rotvec(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Unit quaternion (scalar-last) of a rotation vector, rad."""
+    angle = float(math.sqrt(v @ v))
+    if angle < 1e-12:
+        q = np.array([0.5 * v[0], 0.5 * v[1], 0.5 * v[2], 1.0])
+        return q / math.sqrt(q @ q)
+    s = math.sin(0.5 * angle) / angle
+    return np.array([s * v[0], s * v[1], s * v[2], math.cos(0.5 * angle)])
+
+
+def rotvec_between(q_from: NDArray[np.float64], q_to: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation vector (body axes of ``q_from``, rad) of ``conj(q_from) (x) q_to``, the shorter way round."""
+    conj = np.array([-q_from[0], -q_from[1], -q_from[2], q_from[3]])
+    e = quaternion_product(conj, q_to)
+    if e[3] < 0:
+        e = -e
+    s = float(math.sqrt(e[:3] @ e[:3]))
+    if s < 1e-12:
+        return 2.0 * e[:3]
+    return e[:3] * (2.0 * math.atan2(s, e[3]) / s)
+
+
+@dataclass(frozen=True, slots=True)
+class AttitudeEstimate:
+    """What the estimator gives the control each period."""
+
+    q: NDArray[np.float64]  # body -> inertial, scalar-last
+    omega_rad_s: NDArray[np.float64]  # gyro rate less the estimated bias, body
+    bias_rad_s: NDArray[np.float64]  # estimated gyro bias, body
+    sigma_rad: float  # one-sigma attitude uncertainty of the worst axis
+    outage: bool  # a star tracker outage is declared
+
+
+class AttitudeEstimator:
+    """The MEKF; one ``step`` per control period."""
+
+    def __init__(self, cfg: AttitudeConfig) -> None:
+        self.cfg = cfg
+        self.sigma_v = cfg.gyro_arw_deg_sqrt_h * DEG_SQRT_H_RAD_SQRT_S  # angle random walk, rad/sqrt(s)
+        self.sigma_u = math.radians(cfg.gyro_bias_walk_deg_s_sqrt_s)  # bias random walk, rad/s/sqrt(s)
+        st = np.asarray(cfg.star_tracker_noise_arcsec, dtype=float) * ARCSEC_RAD
+        kf = KalmanFilter(dim_x=6, dim_z=3)
+        kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
+        # a noiseless tracker would make S singular: keep a floor far below any real tracker's noise
+        kf.R = np.diag(np.maximum(st, 1e-9) ** 2)
+        kf.P = np.diag([math.radians(cfg.initial_attitude_sigma_deg) ** 2] * 3
+                       + [math.radians(cfg.initial_bias_sigma_deg_s) ** 2] * 3)
+        self.kf = kf
+        self.q: NDArray[np.float64] | None = None
+        self.bias = np.zeros(3)
+        self._last_solution: tuple[float, ...] | None = None
+        self.since_solution_s = 0.0
+        self.outage = False
+        self.updates = 0
+        self._last_gyro: NDArray[np.float64] | None = None
+
+    @property
+    def bias_sigma_rad_s(self) -> float:
+        """One-sigma gyro bias uncertainty of the worst axis, rad/s."""
+        return float(math.sqrt(max(float(np.max(np.diag(self.kf.P)[3:])), 0.0)))
+
+    @property
+    def bias_known(self) -> bool:
+        """Whether the bias estimate is known well enough to be monitored (``cfg.bias_known_sigma_deg_s``)."""
+        return self.q is not None and self.bias_sigma_rad_s < math.radians(self.cfg.bias_known_sigma_deg_s)
+
+    @property
+    def attitude_sigma_rad(self) -> float:
+        """One-sigma attitude uncertainty of the worst axis, rad."""
+        return float(math.sqrt(max(float(np.max(np.diag(self.kf.P)[:3])), 0.0)))
+
+    def propagate(self, gyro_rad_s: NDArray[np.float64], dt_s: float) -> None:
+        """Advance the attitude by the gyro rate less the bias over ``dt_s``, and its error covariance."""
+        w = np.asarray(gyro_rad_s, dtype=float) - self.bias
+        if self.q is not None:
+            q = quaternion_product(self.q, quaternion_of_rotvec(w * dt_s))
+            self.q = q / math.sqrt(q @ q)
+        phi = np.eye(6)
+        phi[:3, :3] = np.eye(3) - _skew(w) * dt_s + 0.5 * (_skew(w) @ _skew(w)) * dt_s**2
+        phi[:3, 3:] = -np.eye(3) * dt_s + 0.5 * _skew(w) * dt_s**2
+        sv2, su2 = self.sigma_v**2, self.sigma_u**2
+        q_d = np.zeros((6, 6))
+        q_d[:3, :3] = np.eye(3) * (sv2 * dt_s + su2 * dt_s**3 / 3.0)
+        q_d[:3, 3:] = q_d[3:, :3] = -np.eye(3) * (su2 * dt_s**2 / 2.0)
+        q_d[3:, 3:] = np.eye(3) * (su2 * dt_s)
+        self.kf.predict(F=phi, Q=q_d)
+
+    def update(self, star_tracker_q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Take one star tracker solution; return its innovation (rotation vector, body, rad)."""
+        q_meas = np.asarray(star_tracker_q, dtype=float)
+        q_meas = q_meas / math.sqrt(q_meas @ q_meas)
+        if self.q is None:  # the first solution is the attitude
+            self.q = q_meas
+            return np.zeros(3)
+        z = rotvec_between(self.q, q_meas)
+        self.kf.x = np.zeros((6, 1))
+        self.kf.update(z.reshape(3, 1))
+        dx = self.kf.x.ravel()
+        q = quaternion_product(self.q, quaternion_of_rotvec(dx[:3]))
+        self.q = q / math.sqrt(q @ q)
+        self.bias = self.bias + dx[3:]
+        self.kf.x = np.zeros((6, 1))
+        self.updates += 1
+        return z
+
+    def step(self, gyro_rad_s: NDArray[np.float64], star_tracker_q: NDArray[np.float64] | None,
+             dt_s: float) -> AttitudeEstimate:
+        """One control period: propagate over ``dt_s``, take the star tracker's solution if it is a new one, and
+        declare an outage after ``cfg.outage_after_s`` without a reading (the caller reports the changes of
+        ``outage``)."""
+        gyro = np.asarray(gyro_rad_s, dtype=float)
+        if self.q is not None:
+            # the mean of the rates at both ends of the period: the body accelerates by up to 0.02 rad/s^2 near C/A,
+            # which the rate of one end would turn into an attitude error of 1e-4 rad per period, a false bias
+            self.propagate(gyro if self._last_gyro is None else 0.5 * (gyro + self._last_gyro), dt_s)
+        self._last_gyro = gyro
+        if star_tracker_q is not None:
+            if tuple(star_tracker_q) != self._last_solution:  # a tracker slower than the control holds its reading
+                self.update(np.asarray(star_tracker_q, dtype=float))
+                self._last_solution = tuple(float(c) for c in star_tracker_q)
+            self.since_solution_s = 0.0
+            self.outage = False
+        else:
+            self.since_solution_s += dt_s
+            self._last_solution = None  # a tracker back from an outage gives a fresh solution
+            if self.q is not None and self.since_solution_s >= self.cfg.outage_after_s:
+                self.outage = True
+        q = _IDENTITY_Q.copy() if self.q is None else self.q.copy()
+        return AttitudeEstimate(q, gyro - self.bias, self.bias.copy(), self.attitude_sigma_rad, self.outage)
