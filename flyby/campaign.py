@@ -1,8 +1,8 @@
 """``flyby campaign DIR --out OUT``: run every scenario of a folder, judge each run against its ``expect:`` block.
 
 Each scenario (``DIR/*.yaml``) runs in process (``flyby.inprocess``: the three cores exchanging, through the codec,
-exactly the messages the nodes exchange), several at once on the local cores (``run_scenarios``, the one function
-a distributed engine would replace). Each run gets its folder ``OUT/<scenario>/`` as ``flyby run`` leaves one
+exactly the messages the nodes exchange), several at once on the Monte Carlo engine's Dask cluster (``run_scenarios``: a local
+cluster of the machine's cores, or ``--scheduler`` an existing one whose workers share the output folder). Each run gets its folder ``OUT/<scenario>/`` as ``flyby run`` leaves one
 (scenario.yaml, truth.csv, tm.bin, archive.sqlite, summary.json, log.txt) and its report (report.html); then its
 expectations are checked (``analysis.expectations``). Beside the run folders: ``campaign.html``,
 ``campaign.junit.xml`` and ``traceability.html`` (``analysis.campaign_report``). Exit 0 only if every expectation of
@@ -17,7 +17,6 @@ import os
 import shutil
 import sys
 import traceback
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -101,12 +100,29 @@ def run_one(job: Job) -> ScenarioOutcome:
                            verdict, () if expect is None else expect.verifies, clock.now() - start)
 
 
-def run_scenarios(jobs: list[Job], workers: int) -> list[ScenarioOutcome]:
-    """Run the jobs, ``workers`` at a time in separate processes on this machine; outcomes in the order of ``jobs``."""
-    if workers <= 1 or len(jobs) <= 1:
-        return [run_one(j) for j in jobs]
-    with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
-        return list(pool.map(run_one, jobs))
+def run_scenarios(jobs: list[Job], workers: int, scheduler: str | None = None) -> list[ScenarioOutcome]:
+    """Run the jobs on the campaign engine's Dask cluster (``workers`` local processes, or the cluster at
+    ``scheduler``), saying each verdict as it comes; outcomes in the order of ``jobs``."""
+    if scheduler is None and (workers <= 1 or len(jobs) <= 1):
+        return [_said(run_one(j), i, len(jobs)) for i, j in enumerate(jobs)]
+    from distributed import as_completed
+
+    from flyby.montecarlo.engine import dask_client
+
+    outcomes: dict[int, ScenarioOutcome] = {}
+    with dask_client(scheduler, min(workers, len(jobs))) as client:
+        futures = client.map(run_one, jobs, pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        for future in as_completed(futures):
+            outcomes[index[future.key]] = _said(future.result(), len(outcomes), len(jobs))
+    return [outcomes[i] for i in range(len(jobs))]
+
+
+def _said(outcome: ScenarioOutcome, done: int, total: int) -> ScenarioOutcome:
+    """Print one finished scenario's verdict (a campaign takes minutes: show it as it goes)."""
+    mark = "PASS" if outcome.verdict.passed else "FAIL"
+    print(f"[{done + 1}/{total}] {mark}  {outcome.name}", flush=True)
+    return outcome
 
 
 def find_requirements(folder: Path) -> Path | None:
@@ -167,7 +183,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     workers = args.jobs or max(1, os.cpu_count() or 1)
     print(f"flyby campaign: {len(jobs)} scenario(s) of {args.folder}, {workers} at a time, into {args.out}",
           flush=True)
-    outcomes = run_scenarios(jobs, workers)
+    outcomes = run_scenarios(jobs, workers, args.scheduler)
     title = f"Fault campaign: {args.folder.name}"
     (args.out / "campaign.html").write_text(campaign_html(title, outcomes), encoding="utf-8")
     (args.out / "campaign.junit.xml").write_text(junit_xml(args.folder.name, outcomes), encoding="utf-8")
@@ -191,6 +207,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     c.add_argument("--out", type=Path, required=True, help="output folder: one run folder per scenario and the "
                    "campaign's pages")
     c.add_argument("--jobs", type=int, default=None, help="scenarios run at once (default: the local cores)")
+    c.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="an existing Dask scheduler (tcp://HOST:8786) whose workers see --out; default: a local "
+                   "cluster of --jobs processes")
     c.add_argument("--requirements", type=Path, default=None, metavar="FILE",
                    help=f"requirements to trace (default: the nearest {REQUIREMENTS_FILE} in the folder or a parent)")
     c.set_defaults(func=cmd_campaign)
