@@ -33,7 +33,7 @@ from scenario.model import Scenario, load_run_inputs, scenario_from_dict
 ROOT = Path(__file__).parents[2]
 NOMINAL = ROOT / "configs" / "scenarios" / "nominal.yaml"
 SHORT = ROOT / "tests" / "integration" / "data" / "short.yaml"
-STEPS = 620  # to C/A-178 s: the imaging burst has begun and the tracking loop has closed on the image (C/A-181 s)
+STEPS = 740  # the imaging burst has begun and the tracking loop is closed (its gain first moves a torque at 719)
 
 
 Captured = list[tuple[StepRequest, np.ndarray | None, StepReply]]
