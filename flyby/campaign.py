@@ -1,8 +1,9 @@
 """``flyby campaign DIR --out OUT``: run every scenario of a folder, judge each run against its ``expect:`` block.
 
 Each scenario (``DIR/*.yaml``) runs in process (``flyby.inprocess``: the three cores exchanging, through the codec,
-exactly the messages the nodes exchange), several at once on the Monte Carlo engine's Dask cluster (``run_scenarios``: a local
-cluster of the machine's cores, or ``--scheduler`` an existing one whose workers share the output folder). Each run gets its folder ``OUT/<scenario>/`` as ``flyby run`` leaves one
+exactly the messages the nodes exchange), several at once on the Monte Carlo engine's Dask cluster
+(``run_scenarios``: a local cluster of the machine's cores, or ``--scheduler`` an existing one whose workers share
+the output folder). Each run gets its folder ``OUT/<scenario>/`` as ``flyby run`` leaves one
 (scenario.yaml, truth.csv, tm.bin, archive.sqlite, summary.json, log.txt) and its report (report.html); then its
 expectations are checked (``analysis.expectations``). Beside the run folders: ``campaign.html``,
 ``campaign.junit.xml`` and ``traceability.html`` (``analysis.campaign_report``). Exit 0 only if every expectation of
