@@ -137,7 +137,8 @@ def find_requirements(folder: Path) -> Path | None:
 def check_inputs(folder: Path, requirements: Path | None) -> tuple[list[Path], Requirements | None, list[str]]:
     """The scenario files of ``folder``, the requirements, and every problem (a line each) found before any run."""
     problems = []
-    paths = sorted(folder.glob("*.yaml")) if folder.is_dir() else []
+    # the folder's own requirements file, found as find_requirements finds it, is not a scenario
+    paths = sorted(p for p in folder.glob("*.yaml") if p.name != REQUIREMENTS_FILE) if folder.is_dir() else []
     if not folder.is_dir():
         problems.append(f"{folder}: no such folder")
     elif not paths:

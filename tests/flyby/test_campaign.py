@@ -13,7 +13,7 @@ import yaml
 
 from analysis.runfolder import load_run
 from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG
-from flyby.campaign import check_inputs
+from flyby.campaign import check_inputs, find_requirements
 from flyby.cli import main
 from scenario.model import load_run_inputs
 from universe.config import FAULT_RULES
@@ -133,3 +133,12 @@ def test_the_shipped_fault_campaign_is_valid_and_covers_every_fault_kind() -> No
     assert wheel1 == {"orthogonal", "pyramid"}
     verified = {i for s in scenarios for i in s.expect.verifies}  # type: ignore[union-attr]
     assert verified == {r.id for r in reqs.requirements}
+
+
+def test_a_requirements_file_in_the_folder_is_not_taken_for_a_scenario(tmp_path: Path) -> None:
+    """The folder's own requirements.yaml is the campaign's requirements, not a scenario to run."""
+    folder = _campaign(tmp_path, {"clean": CLEAN})
+    (folder / "requirements.yaml").write_text((CONFIGS / "requirements.yaml").read_text())
+    paths, reqs, problems = check_inputs(folder, find_requirements(folder))
+    assert problems == [] and [p.name for p in paths] == ["clean.yaml"]
+    assert reqs is not None and find_requirements(folder) == (folder / "requirements.yaml").resolve()
