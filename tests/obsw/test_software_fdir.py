@@ -33,6 +33,8 @@ from timeline.parse import timeline_from_data
 
 FAILED_AT_S = 128.0  # C/A-40 s of the short flyby: tracking, slewing about body Y
 
+CA_AFTER_OBT0_S = TRAJECTORY.ca_obt_s - OBT0  # the C/A-relative tags below are placed against it
+
 
 def _short_flyby_with(fault: dict, layout: str) -> tuple[object, list]:
     """The short closed-loop flyby at centroid fidelity with one fault and a wheel layout: the run and its packets."""
@@ -145,7 +147,7 @@ def test_an_obt_jump_moves_nothing_physical() -> None:
     same period, with a ClockJumpEvent and a TimeShiftedEvent naming the entry moved."""
     tcs = (pus.encode_tc(TRAJECTORY, APID, 0), pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 1),
            pus.encode_tc(pus.InsertCaRelativeActivities(activities=(pus.CaRelativeActivity(
-               ca_offset_s=-197.0, release_obt_s=OBT0 + 3.0, tc_packet=pus.encode_tc(pus.Ping(), APID, 0x2001)),)),
+               ca_offset_s=3.0 - CA_AFTER_OBT0_S, release_obt_s=OBT0 + 3.0, tc_packet=pus.encode_tc(pus.Ping(), APID, 0x2001)),)),
                APID, 2))
     a, b = FlightSoftware(ObswConfig(), KEYS), FlightSoftware(ObswConfig(), KEYS)
     q = tuple(Rotation.from_rotvec([0.01, -0.02, 0.03]).as_quat())
@@ -210,7 +212,7 @@ def test_a_ca_relative_command_past_on_arrival_is_released_at_once_with_an_event
     fsw = FlightSoftware(ObswConfig(), KEYS)
     ping = pus.encode_tc(pus.Ping(), APID, 0x2002)
     late = pus.InsertCaRelativeActivities(activities=(pus.CaRelativeActivity(
-        ca_offset_s=-220.0, release_obt_s=OBT0 - 20.0, tc_packet=ping),))
+        ca_offset_s=-20.0 - CA_AFTER_OBT0_S, release_obt_s=OBT0 - 20.0, tc_packet=ping),))
     tm = _tm(fsw.step(_request(0, OBT0, (pus.encode_tc(TRAJECTORY, APID, 0), pus.encode_tc(late, APID, 1))),
                       None).downlink)
     (ev,) = _of(tm, pus.LateReleaseEvent)
