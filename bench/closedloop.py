@@ -40,7 +40,7 @@ from analysis.scoring import RunFigures, score_run  # noqa: E402
 from analysis.telemetry import decoded_telemetry  # noqa: E402
 from analysis.truth import Truth  # noqa: E402
 from ground.config import ReportConfig  # noqa: E402
-from scenario.model import Scenario, load_run_inputs  # noqa: E402
+from scenario.model import Scenario, load_run_inputs, scenario_from_dict  # noqa: E402
 
 SCENARIOS = tuple(ROOT / "configs" / "scenarios" / f"{n}.yaml"
                   for n in ("nominal", "worst-early-near", "worst-early-far", "worst-late-near", "worst-late-far"))
@@ -65,8 +65,9 @@ def bench_config(scenario: Scenario) -> ReportConfig:
     return cfg.model_copy(update={"in_view_required": max(cfg.in_view_required, target)})
 
 
-def run_data(scenario_path: Path, in_process: bool, out: Path) -> RunData:
-    """Run one scenario and return what the report reads from its run folder."""
+def run_data(scenario_path: Path, in_process: bool, out: Path, zero_time: bool = False) -> RunData:
+    """Run one scenario and return what the report reads from its run folder (``zero_time``, in process only: the
+    on-board processing times off, ``obsw.timing.modelled: false``)."""
     if not in_process:
         run_dir = out / scenario_path.stem
         cmd = [sys.executable, "-m", "flyby.cli", "run", str(scenario_path), "--out", str(run_dir), "--log-level",
@@ -79,14 +80,18 @@ def run_data(scenario_path: Path, in_process: bool, out: Path) -> RunData:
     from flyby.inprocess import run_in_process
 
     scenario, timeline = load_run_inputs(scenario_path)
+    if zero_time:
+        data = scenario.model_dump(mode="json")
+        data["obsw"]["timing"]["modelled"] = False
+        scenario = scenario_from_dict(data, f"{scenario_path.name} with the timing off")
     r = run_in_process(scenario, timeline)
     tm = decoded_telemetry([p.raw for p in r.received], "in-process")
     return RunData(Path("<in-process>"), scenario, Truth.from_records(r.truth), tm)
 
 
-def score(scenario_path: Path, in_process: bool, out: Path) -> Result:
+def score(scenario_path: Path, in_process: bool, out: Path, zero_time: bool = False) -> Result:
     """Run and score one scenario."""
-    data = run_data(scenario_path, in_process, out)
+    data = run_data(scenario_path, in_process, out, zero_time)
     figs, notes = score_run(data, bench_config(data.scenario))
     truth, tm = data.truth, data.telemetry
     assert truth is not None and tm is not None, f"{scenario_path.name}: {data.missing}"
@@ -132,12 +137,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=1,
                     help="runs at once (default 1: over Zenoh each run is three processes)")
     ap.add_argument("--verbose", action="store_true", help="print each run's notes (windows, modes, C/A truth)")
+    ap.add_argument("--zero-time", action="store_true",
+                    help="with --in-process: the on-board processing times off (obsw.timing.modelled: false)")
     args = ap.parse_args(argv)
+    if args.zero_time and not args.in_process:
+        ap.error("--zero-time needs --in-process")
     args.out.mkdir(parents=True, exist_ok=True)
     paths = [p.resolve() for p in args.scenarios]
     with ProcessPoolExecutor(max_workers=max(1, min(args.jobs, len(paths), os.cpu_count() or 1))) as pool:
-        results = list(pool.map(score, paths, [args.in_process] * len(paths), [args.out] * len(paths)))
+        results = list(pool.map(score, paths, [args.in_process] * len(paths), [args.out] * len(paths),
+                                [args.zero_time] * len(paths)))
     how = "in one process" if args.in_process else "over Zenoh, three processes each"
+    how += ", on-board timing off" if args.zero_time else ""
     print(f"Closed-loop flybys ({how}); C/A errors at true C/A-30 s against the spacecraft-Dimorphos truth")
     print(table(results))
     if args.verbose:
