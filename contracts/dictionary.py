@@ -645,7 +645,7 @@ class DisableSchedule(Telecommand, service=11, subtype=2):
 
 
 class ResetSchedule(Telecommand, service=11, subtype=3):
-    """Delete every scheduled activity."""
+    """Delete every scheduled activity and disable the release until TC[11,1] (ECSS-E-ST-70-41C 6.11.4)."""
 
 
 class InsertActivities(Telecommand, service=11, subtype=4):

@@ -242,6 +242,7 @@ class FlightSoftware:
             pus.DetailReportRequest: self._detail_report,
             pus.EnableSchedule: self._enable_schedule,
             pus.DisableSchedule: self._disable_schedule,
+            pus.ResetSchedule: self._reset_schedule,
             pus.SetWheelSet: self._set_wheel_set,
             pus.EnableParameterMonitoring: lambda c, o: self.monitor.set_enabled(c.pmon_ids, True),
             pus.DisableParameterMonitoring: lambda c, o: self.monitor.set_enabled(c.pmon_ids, False),
@@ -728,6 +729,12 @@ class FlightSoftware:
     def _disable_schedule(self, cmd: pus.DisableSchedule, obt: float) -> None:
         self.schedule.enabled = False
         self._log.append(f"OBT {obt:.2f} s: time-based schedule disabled")
+
+    def _reset_schedule(self, cmd: pus.ResetSchedule, obt: float) -> None:
+        # ECSS-E-ST-70-41C TC[11,3]: every activity deleted and the schedule's execution disabled until enabled again
+        gone = self.schedule.delete(Selection())
+        self.schedule.enabled = False
+        self._log.append(f"OBT {obt:.2f} s: time-based schedule reset: {len(gone)} activities deleted, disabled")
 
     def _add_event_actions(self, cmd: pus.AddEventActions, obt: float) -> None:
         for d in cmd.definitions:

@@ -492,3 +492,24 @@ def test_overloads_are_counted_in_housekeeping_raised_once_per_run_and_never_sto
     assert sum(isinstance(e, pus.TaskOverrunEvent) for e in events) == task_events
     assert sum(isinstance(e, pus.FrameOverrunEvent) for e in events) == frame_events
     assert fsw.executive.task_overruns == task_overruns and fsw.executive.frame_overruns == frame_overruns
+
+
+def test_a_schedule_reset_deletes_every_activity_and_disables_the_release() -> None:
+    """TC[11,3] (ECSS-E-ST-70-41C): the pending activities are never released; one inserted afterwards waits for
+    TC[11,1] and is then released at its tag."""
+    fsw = FlightSoftware(ObswConfig(), KEYS)
+
+    def insert(seq: int, inner_seq: int, tag_s: float) -> bytes:
+        ping = pus.encode_tc(pus.Ping(), APID, inner_seq)
+        return pus.encode_tc(pus.InsertActivities(activities=(
+            pus.ScheduledActivity(release_obt_s=OBT0 + tag_s, tc_packet=ping),)), APID, seq)
+
+    uplink = {0: (insert(0, 0x2200, 3.0), insert(1, 0x2201, 4.0)), 1: (pus.encode_tc(pus.ResetSchedule(), APID, 2),),
+              2: (insert(3, 0x2202, 6.0),), 80: (pus.encode_tc(pus.EnableSchedule(), APID, 4),)}
+    pings = []
+    for k in range(0, 100):
+        reply = fsw.step(_request(k, OBT0 + k * DT, uplink.get(k, ())), None)
+        pings += [k] * len(_of(_tm(reply.downlink), pus.PingReply))
+        if k == 1:
+            assert len(fsw.schedule) == 0 and not fsw.schedule.enabled
+    assert pings == [80]  # 0x2202's tag (step 60) passed while disabled: released at once when enabled
