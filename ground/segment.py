@@ -95,14 +95,16 @@ class GroundSegment:
     """Ground's logic for one run."""
 
     def __init__(self, cfg: GroundConfig, belief: FlybyBelief, epoch_utc: str, timeline: Timeline | None = None,
-                 keys: sdls.KeyRing | None = None, *, bad_pixel_map: pus.LoadBadPixelMap | None = None) -> None:
+                 keys: sdls.KeyRing | None = None, *, bad_pixel_map: pus.LoadBadPixelMap | None = None,
+                 bad_pixels_found: int = 0) -> None:
         """``belief``: ground's nominal trajectory; ``epoch_utc``: UTC of time zero, for the timeline's UTC tags;
         ``keys``: the security associations that authenticate its TCs (none: TCs go out unsecured, and the
         spacecraft refuses them); ``bad_pixel_map``: the camera's bad-pixel map from ground's calibration, uploaded
-        with the nominal trajectory (none: not uploaded)."""
+        with the nominal trajectory (none: not uploaded), of ``bad_pixels_found`` pixels the calibration found."""
         self.cfg = cfg
         self.belief = belief
         self.bad_pixel_map = bad_pixel_map
+        self.bad_pixels_found = bad_pixels_found
         self.epoch_utc = epoch_utc
         self.nominal_ca_utc_s, self.nominal_ca_km = belief.ca_utc_s, belief.ca_distance_km
         self.correlation = Correlation.exact(self.cfg.a_priori_obt_offset_s, 0.0)
@@ -227,6 +229,9 @@ class GroundSegment:
             if self.bad_pixel_map is not None:
                 m = self.bad_pixel_map
                 log.append(f"upload bad-pixel map: {len(m.pixels)} pixel(s), {len(m.columns)} column(s)")
+                if self.bad_pixels_found > len(m.pixels):
+                    log.append(f"WARNING: the calibration found {self.bad_pixels_found} bad pixels; the map carries "
+                               f"the {len(m.pixels)} that fit one telecommand (dead pixels first, then the brightest)")
                 uplink.append(self._tc(m, utc_s))
             if self.timeline is not None and self.timeline.entries:
                 inserts = self.timeline_upload(utc_s, tc, log)

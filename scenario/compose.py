@@ -8,6 +8,7 @@ here, so a node started alone on another host composes exactly what ``flyby run`
 from __future__ import annotations
 
 import numpy as np
+from pydantic import ValidationError
 
 from contracts import pus
 from contracts.sdls import KeyRing
@@ -48,27 +49,52 @@ def ground_belief(scenario: Scenario) -> FlybyBelief:
                        ca_time_sigma_s=unc.ca_time_sigma_s, ca_distance_sigma_km=unc.ca_distance_sigma_km)
 
 
-def ground_bad_pixel_map(scenario: Scenario) -> pus.LoadBadPixelMap:
-    """Ground's bad-pixel map of the camera, from its calibration: the pixels of the run's dark frame (the universe's
-    ``dark_frame`` at the planned exposure, drawn from the same seeded stream) more than ``bad_pixel_k_sigma`` robust
-    sigmas above its median, the hot and warm pixels that matter at that exposure; and the sensor's dead pixels and
-    columns, which read the bias in a dark frame and are known from flat fields (its fixed maps)."""
+def ground_bad_pixel_map(scenario: Scenario) -> tuple[pus.LoadBadPixelMap, int]:
+    """Ground's bad-pixel map of the camera from its calibration, and how many bad pixels the calibration found.
+
+    The calibration takes the pixels of the run's dark frame (the universe's ``dark_frame`` at the planned exposure,
+    drawn from the same seeded stream) more than ``bad_pixel_k_sigma`` robust sigmas above its median, the hot and
+    warm pixels that matter at that exposure; and the sensor's dead pixels and columns, which read the bias in a dark
+    frame and are known from flat fields (its fixed maps). The map is one telecommand: when the calibration finds
+    more than fits in one packet, it keeps the dead pixels, then the brightest."""
     cam = scenario.universe.camera
-    dark = dark_frame(cam, scenario.obsw.camera.exposure_s, rng_streams(scenario.seed)["dark_frame"])
+    dark = dark_frame(cam, scenario.obsw.camera.exposure_s, rng_streams(scenario.seed)["dark_frame"]).reshape(-1)
     median = float(np.median(dark))
     sigma = 1.4826 * float(np.median(np.abs(dark - median)))
-    bright = np.flatnonzero(dark.reshape(-1) > median + scenario.ground.bad_pixel_k_sigma * max(sigma, 0.5))
+    bright = np.flatnonzero(dark > median + scenario.ground.bad_pixel_k_sigma * max(sigma, 0.5))
     defects = sensor_defects(cam)
-    flat = np.union1d(bright, defects.dead_idx)
-    rows, cols = np.divmod(flat, cam.resolution_px)
     columns = {int(c) for c in defects.dead_columns}
-    pixels = tuple(pus.BadPixel(col=int(c), row=int(r)) for c, r in zip(cols, rows, strict=True) if int(c) not in columns)
-    return pus.LoadBadPixelMap(columns=tuple(sorted(columns)), pixels=pixels)
+    dead = np.unique(defects.dead_idx)
+    bright = bright[~np.isin(bright, dead)]
+    ranked = np.concatenate([dead, bright[np.argsort(-dark[bright], kind="stable")]]).astype(np.int64)
+    ranked = ranked[~np.isin(ranked % cam.resolution_px, list(columns))]
+
+    def load(n: int) -> pus.LoadBadPixelMap:
+        idx = np.sort(ranked[:n])  # the map in pixel order, as before
+        rows, cols = np.divmod(idx, cam.resolution_px)
+        return pus.LoadBadPixelMap(columns=tuple(sorted(columns)), pixels=tuple(
+            pus.BadPixel(col=int(c), row=int(r)) for c, r in zip(cols, rows, strict=True)))
+
+    def fits(n: int) -> bool:
+        try:
+            pus.encode_tc(load(n), scenario.ground.apid, 0)
+        except (ValidationError, pus.PacketError):
+            return False
+        return True
+
+    n = len(ranked)
+    if not fits(n):  # the largest count that fits one packet, by bisection
+        lo, hi = 0, n
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+        n = lo
+    return load(n), len(ranked)
 
 
 def ground_segment(scenario: Scenario, timeline: Timeline | None = None, keys: KeyRing | None = None) -> GroundSegment:
     """The ground segment with its belief of the flyby, the timeline it uploads, the keys it secures TCs with and
     its calibration of the camera's bad pixels."""
-    bad = ground_bad_pixel_map(scenario) if scenario.ground.upload_bad_pixel_map else None
+    bad, found = ground_bad_pixel_map(scenario) if scenario.ground.upload_bad_pixel_map else (None, 0)
     return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline, keys,
-                         bad_pixel_map=bad)
+                         bad_pixel_map=bad, bad_pixels_found=found)
