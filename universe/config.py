@@ -18,6 +18,8 @@ Vec3 = tuple[float, float, float]
 
 # 100 times the default effort (0.01 s substeps): a finer substep only spends time, its error being below 1e-9 already
 MAX_SUBSTEPS_PER_S = 10_000.0
+# 1,000 s of the default dynamics in one lock-step period (the paper's control runs every 0.1 s)
+MAX_SUBSTEPS_PER_PERIOD = 100_000.0
 
 
 class FlybyConfig(Config):
@@ -162,13 +164,20 @@ class SpacecraftConfig(Config):
             raise ValueError(problem)
         return v
 
+    def friction_rate_s(self) -> float:
+        """The wheels' friction stiffness on the rotor speed, 1/s."""
+        w = self.wheels
+        return (w.viscous_friction_nms + w.coulomb_friction_nm / w.coulomb_smoothing_rad_s) / w.inertia_kgm2
+
+    def substeps_per_s(self) -> float:
+        """RK4 substeps per simulated second: the shorter of integration_substep_s and half the friction time."""
+        return max(1.0 / self.integration_substep_s, 2.0 * self.friction_rate_s())
+
     @model_validator(mode="after")
     def _bounded_integration_effort(self) -> SpacecraftConfig:
-        # the substep follows the shorter of integration_substep_s and half the friction time constant: bound it
-        # here, or a mutated number makes one control period take hours instead of failing at load
-        w = self.wheels
-        friction_rate_s = (w.viscous_friction_nms + w.coulomb_friction_nm / w.coulomb_smoothing_rad_s) / w.inertia_kgm2
-        per_s = max(1.0 / self.integration_substep_s, 2.0 * friction_rate_s)
+        # bound it here, or a mutated number makes one control period take hours instead of failing at load
+        friction_rate_s = self.friction_rate_s()
+        per_s = self.substeps_per_s()
         if per_s > MAX_SUBSTEPS_PER_S:
             raise ValueError(
                 f"the attitude dynamics would take {per_s:.3g} RK4 substeps per simulated second (at most "
@@ -628,6 +637,16 @@ class UniverseConfig(Config):
         if start is not None and v <= start:
             raise ValueError("must be after start_s")
         return v
+
+    @model_validator(mode="after")
+    def _bounded_period(self) -> UniverseConfig:
+        # one lock-step period is integrated in one call: its substeps are bounded as the rate of them is
+        n = self.spacecraft.substeps_per_s() * self.control_period_s
+        if n > MAX_SUBSTEPS_PER_PERIOD:
+            raise ValueError(f"control_period_s: {self.control_period_s:g} s is {n:.3g} RK4 substeps of the attitude "
+                             f"dynamics in one period (at most {MAX_SUBSTEPS_PER_PERIOD:.0f}): the lock-step period "
+                             f"must be <= {MAX_SUBSTEPS_PER_PERIOD / self.spacecraft.substeps_per_s():g} s")
+        return self
 
     @model_validator(mode="after")
     def _faults_fit_the_run(self) -> UniverseConfig:

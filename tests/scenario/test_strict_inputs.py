@@ -44,6 +44,7 @@ REFUSED = [
      "universe.start_s: on-board time OBT -1096 s at t = -132 s is outside the CUC range"),
     ({"universe": {"flyby": {"ca_time_s": 1.2856254793347456e16}}},
      "universe.flyby.ca_time_s: on-board time OBT 1.28563e+16 s"),
+    ({"universe": {"control_period_s": 1e7}}, "universe.control_period_s: 1e+07 s is 1e+09 RK4 substeps"),
     ({"universe": {"spacecraft": {"integration_substep_s": 1e-7}}},
      "universe.spacecraft: the attitude dynamics would take 1e+07 RK4 substeps per simulated second"),
 ]
