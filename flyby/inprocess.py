@@ -109,3 +109,4 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
         out.truth += gs.truth
         out.log += [f"ground: {x}" for x in lines]
         out.alarms += ground.take_alarms()
+    out.log += [f"universe: {x}" for x in sim.take_log()]

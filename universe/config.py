@@ -626,6 +626,10 @@ class UniverseConfig(Config):
         "image", description="image: render each frame and let the on-board imaging chain process it; centroid: send "
         "the chain's output modelled by centroid_model instead (no pixels, for fast Monte Carlo campaigns)")
     centroid_model: CentroidModelConfig = CentroidModelConfig()
+    drain_limit_s: float = Field(
+        3600.0, gt=0, description="after the last control period, true time the run waits for the telemetry still in "
+        "flight, s; what has not arrived by then is dropped and logged (at the default 1 h, a slow link's backlog "
+        "cannot hold a run for days)")
     save_frames_every: int = Field(
         1, ge=0, description="write every n-th camera frame as an 8-bit 512x512 PNG into the run folder (0: none)"
     )

@@ -116,6 +116,8 @@ def run(bus: Attachment, sim: Universe, bus_cfg: BusConfig, realtime: bool, cloc
     while (gs := sim.drain()) is not None:
         bus.sim_time_s = sim.t_s
         bus.exchange(bus.keys.ground_step, gs, b"", GroundReply, "ground", timeout)
+    for line in sim.take_log():
+        log.warning("%s", line)
 
 
 def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, run_id: str, out: Path,

@@ -308,7 +308,15 @@ class Universe:
         """After the last control period: the next ground step while telemetry is still in flight, else None."""
         if not self.link.downlink.in_flight and not self._truth:
             return None
-        self.t_s = max(self.t_s, self._next_ground_s)  # true time runs on while the last packets travel
+        t = max(self.t_s, self._next_ground_s)  # true time runs on while the last packets travel
+        if t > self.cfg.end_s + self.cfg.drain_limit_s and not self._truth:
+            dropped = len(self.link.downlink.in_flight)
+            self.link.downlink.in_flight.clear()
+            self.link.downlink.lost += dropped
+            self._log.append(f"{dropped} telemetry packet(s) still in flight {self.cfg.drain_limit_s:g} s after the "
+                             "run's end (universe.drain_limit_s): dropped")
+            return None
+        self.t_s = t
         return self.ground_step()
 
     def accept_ground(self, reply: GroundReply) -> None:
