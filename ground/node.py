@@ -19,7 +19,7 @@ import zenoh
 from collections.abc import Callable
 
 from contracts.bus import BusConfig, Keys
-from contracts.clock import WallClock
+from contracts.clock import WallClock, process_usage
 from contracts.errors import NodeFailure
 from contracts import pus
 from contracts.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
@@ -215,6 +215,8 @@ def main(conf: zenoh.Config, segment: GroundSegment, bus_cfg: BusConfig, run_id:
         "offset_s": c.offset_s, "drift": c.drift, "offset_sigma_s": c.offset_sigma_s,
         "drift_sigma_ppm": c.drift_sigma_ppm, "n_reports": c.n_reports, "residual_rms_s": c.residual_rms_s}, indent=2))
     if finish is not None:
+        # the report reads the whole run back: its memory is the report's, apart from the run's own
+        log.info("before the report, %s", process_usage().line())
         lines = finish(out, lines, code == EXIT_OK)
         (out / "summary.json").write_text(json.dumps({"lines": lines}, indent=2))
     for line in lines:
