@@ -42,8 +42,8 @@ def _bare_session(endpoint: str, tls: dict[str, object] | None) -> zenoh.Session
 
 def _sees_no_node(session: zenoh.Session, keys: Keys) -> bool:
     """Whether, after a while, the session still has no peer and sees no node's liveliness token."""
-    time.sleep(1.5)
-    tokens = list(session.liveliness().get(keys.alive_all, timeout=1.0))
+    # the query is the wait: a session let in would have the nodes' tokens answer it before its timeout
+    tokens = list(session.liveliness().get(keys.alive_all, timeout=2.5))
     return not list(session.info.peers_zid()) and not [t for t in tokens if t.ok is not None]
 
 
@@ -80,9 +80,12 @@ def test_attacks_on_a_running_flyby_are_refused(tmp_path: Path) -> None:
         subs = [ground.declare_subscriber(keys.step, on_step),
                 ground.declare_subscriber(keys.ground_step, on_ground_step)]
         deadline = time.monotonic() + WINDOW_S
-        while not captured:
+        while not captured:  # woken by the first uplink heard
             assert time.monotonic() < deadline and procs["universe"].poll() is None, "the uplink was never heard"
-            time.sleep(0.05)
+            try:
+                arrived.get(timeout=1.0)
+            except queue.Empty:
+                pass
 
         # 1. no certificate at all: plain TCP, then TLS without a client certificate
         port = ep["universe"].rsplit(":", 1)[1]
@@ -110,7 +113,7 @@ def test_attacks_on_a_running_flyby_are_refused(tmp_path: Path) -> None:
             ground.put(keys.step, encode(step))
             ground.put(keys.ground_step, encode(GroundStep(step=10**6, utc_s=0.0)))
             ground.put(keys.operator, encode(request))
-            time.sleep(0.1)
+            ground_steps.get(timeout=WINDOW_S)  # one try per ground step
 
         # 4. racing the real ground with the units a ground certificate holder can put on the uplink
         genuine = captured[0]

@@ -104,7 +104,9 @@ def test_a_killed_universe_leaves_no_frame_in_shared_memory(tmp_path: Path) -> N
         universe = [p for p in _processes_mentioning(str(out)) if b"-m\0universe" in
                     Path(f"/proc/{p}/cmdline").read_bytes()]
         assert len(universe) == 1
-        time.sleep(2.0)  # real-time pacing: frames are flowing
+        while not any((out / "frames").glob("*.png")):  # frames are flowing: the first one is filed
+            assert time.monotonic() < deadline and launcher.poll() is None, "no frame was ever filed"
+            time.sleep(0.2)
         os.kill(universe[0], signal.SIGKILL)
         text, _ = launcher.communicate(timeout=60)
         assert launcher.returncode != 0, text
