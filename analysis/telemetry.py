@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from contracts import pus
 from ground.archive import Archive, ArchiveError
@@ -31,13 +32,30 @@ class Telemetry:
 
 def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
     """Decode TM packets into a Telemetry; undecodable ones are counted, never fatal."""
-    tm = Telemetry(source=source, packets=len(packets))
+    pairs: list[tuple[pus.TmHeader, pus.TmReport] | None] = []
     for raw in packets:
         try:
-            header, report = pus.decode_tm(raw)
+            pairs.append(pus.decode_tm(raw))
         except pus.PacketError:
+            pairs.append(None)
+    return telemetry_of(pairs, source)
+
+
+def received_telemetry(received: Iterable[Any], source: str) -> Telemetry:
+    """The Telemetry of the packets ground received (``ground.segment.ReceivedPacket``: its decoding is kept, so
+    nothing is decoded twice)."""
+    return telemetry_of([None if p.header is None or p.report is None else (p.header, p.report)
+                         for p in received], source)
+
+
+def telemetry_of(decoded: Sequence[tuple[pus.TmHeader, pus.TmReport] | None], source: str) -> Telemetry:
+    """A Telemetry from packets already decoded (None: an undecodable one, counted)."""
+    tm = Telemetry(source=source, packets=len(decoded))
+    for item in decoded:
+        if item is None:
             tm.undecodable += 1
             continue
+        header, report = item
         key = (header.service, header.subservice, type(report).__name__)
         tm.by_type[key] = tm.by_type.get(key, 0) + 1
         t = header.obt_s

@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 
 from analysis.runfolder import RunData, load_run  # noqa: E402
 from analysis.scoring import RunFigures, score_run  # noqa: E402
-from analysis.telemetry import decoded_telemetry  # noqa: E402
+from analysis.telemetry import received_telemetry  # noqa: E402
 from analysis.truth import Truth  # noqa: E402
 from ground.config import ReportConfig  # noqa: E402
 from scenario.model import Scenario, load_run_inputs, scenario_from_dict  # noqa: E402
@@ -85,7 +85,7 @@ def run_data(scenario_path: Path, in_process: bool, out: Path, zero_time: bool =
         data["obsw"]["timing"]["modelled"] = False
         scenario = scenario_from_dict(data, f"{scenario_path.name} with the timing off")
     r = run_in_process(scenario, timeline)
-    tm = decoded_telemetry([p.raw for p in r.received], "in-process")
+    tm = received_telemetry(r.received, "in-process")
     return RunData(Path("<in-process>"), scenario, Truth.from_records(r.truth), tm)
 
 

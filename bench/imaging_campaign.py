@@ -33,7 +33,7 @@ import yaml  # noqa: E402
 
 from analysis.runfolder import RunData  # noqa: E402
 from analysis.scoring import score_run  # noqa: E402
-from analysis.telemetry import decoded_telemetry  # noqa: E402
+from analysis.telemetry import received_telemetry  # noqa: E402
 from analysis.truth import Truth  # noqa: E402
 from scenario.model import scenario_from_dict  # noqa: E402
 
@@ -89,7 +89,7 @@ def run(k: int, campaign_seed: int, phase_correction: bool) -> dict:
     scenario = scenario_from_dict(raw)
     timeline = load_timeline(Path(raw["ground"]["timeline_file"])) if raw["ground"].get("timeline_file") else None
     r = run_in_process(scenario, timeline)
-    tm = decoded_telemetry([p.raw for p in r.received], "in-process")
+    tm = received_telemetry(r.received, "in-process")
     figs, _ = score_run(RunData(Path("<in-process>"), scenario, Truth.from_records(r.truth), tm),
                         scenario.ground.report)
     return {"run": k, "seed": scenario.seed, "all_pass": figs.all_pass, "in_view": figs.in_view_fraction,

@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 
 from analysis.runfolder import RunData  # noqa: E402
 from analysis.scoring import score_run  # noqa: E402
-from analysis.telemetry import decoded_telemetry  # noqa: E402
+from analysis.telemetry import received_telemetry  # noqa: E402
 from analysis.truth import Truth  # noqa: E402
 from bench.closedloop import bench_config  # noqa: E402
 from contracts import pus  # noqa: E402
@@ -74,7 +74,7 @@ def run_point(scenario_path: Path, latency_s: float, propagate: bool) -> Point:
                                       "magnitude": max(latency_s - TICK_MARGIN_S, 0.0)}]
     sc = scenario_from_dict(data, str(scenario_path))
     run = run_in_process(sc, timeline)
-    tm = decoded_telemetry([p.raw for p in run.received], "in-process")
+    tm = received_telemetry(run.received, "in-process")
     truth = Truth.from_records(run.truth)
     figs, _ = score_run(RunData(Path("<in-process>"), sc, truth, tm), bench_config(sc))
     near = np.abs(truth.obt_s - figs.true_ca_obt_s) <= NEAR_CA_S

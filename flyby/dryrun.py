@@ -24,7 +24,7 @@ import numpy as np
 
 from analysis.runfolder import RunData
 from analysis.scoring import RunFigures, score_run
-from analysis.telemetry import decoded_telemetry
+from analysis.telemetry import received_telemetry
 from analysis.truth import Truth
 from contracts import pus
 from contracts.errors import ScenarioError
@@ -38,6 +38,7 @@ from timeline.convert import epoch_datetime
 from timeline.model import Timeline
 
 CORNER_SIGMA = 3.0  # ground's corners: C/A time and distance this many one-sigma off its belief (the paper's 3-sigma)
+END_MARGIN_S = 5.0  # a case runs this long past its last release and its scoring window (the on-board C/A a second off)
 
 
 class DryRunInputError(ValueError):
@@ -74,12 +75,14 @@ def cases(k: float = CORNER_SIGMA) -> list[Case]:
 
 
 def rehearsal_scenario(sc: Scenario, belief: FlybyBelief, case: Case, upload_utc_s: float | None = None,
-                       fidelity: str = "centroid") -> Scenario:
+                       fidelity: str = "centroid", timeline: Timeline | None = None) -> Scenario:
     """The scenario of one case: the truth is ground's belief moved by the case's sigmas, ground believes
     ``belief`` (the uncertainty offsets cancel the move), the oscillator is ground's a-priori correlation (no drift,
     no jitter), no faults, the timeline given separately; ``upload_utc_s``: the run starts and ground uploads then
     (a live run's current time), else as the scenario says; ``fidelity``: centroid (the imaging chain's output
-    modelled, fast) or image (frames rendered and processed). ScenarioError if the case cannot be built."""
+    modelled, fast) or image (frames rendered and processed); ``timeline``: the case ends once its last command is
+    released and the scoring window has closed (``case_end_s``), not later than the scenario. ScenarioError if the
+    case cannot be built."""
     data: dict[str, Any] = sc.model_dump(mode="json")
     u = data["universe"]
     u["fidelity"] = fidelity
@@ -96,7 +99,42 @@ def rehearsal_scenario(sc: Scenario, belief: FlybyBelief, case: Case, upload_utc
     u["faults"] = []
     data["ground"]["timeline_file"] = None
     data["name"] = f"{sc.name}-dry-run"
+    if timeline is not None:
+        end = case_end_s(sc, belief, timeline, u["flyby"]["ca_time_s"])
+        if end is not None and u["start_s"] < end < u["end_s"]:
+            u["end_s"] = u["start_s"] + math.ceil((end - u["start_s"]) / sc.universe.control_period_s) \
+                * sc.universe.control_period_s
     return scenario_from_dict(data, f"dry run case '{case.name}'")
+
+
+class _APriori:
+    """Ground's a-priori time correlation, which is the dry run's clock: OBT = UTC + offset."""
+
+    def __init__(self, offset_s: float) -> None:
+        self.offset_s = offset_s
+
+    def to_obt(self, utc_s: float) -> float:
+        """On-board time at ``utc_s``, s."""
+        return utc_s + self.offset_s
+
+
+def case_end_s(sc: Scenario, belief: FlybyBelief, timeline: Timeline, true_ca_utc_s: float) -> float | None:
+    """When a case has shown all it can (UTC s): its last command released and the requirements' window after the
+    true C/A closed, plus ``END_MARGIN_S``; None if the timeline cannot be resolved (the whole scenario is run, and
+    ground reports why). Tags are resolved as ground resolves them on its belief, and again on the true C/A: in
+    autonomous tracking the flight software moves its C/A-relative commands to the C/A it recognised."""
+    from timeline.convert import resolved_commands
+    from timeline.model import TimelineError
+
+    offset = sc.ground.a_priori_obt_offset_s
+    last_utc = -math.inf
+    for ca_utc_s in (belief.ca_utc_s, true_ca_utc_s):
+        try:
+            rows = resolved_commands(timeline, _APriori(offset), epoch_utc=sc.epoch_utc, ca_utc_s=ca_utc_s)
+        except TimelineError:
+            return None
+        last_utc = max([last_utc, *(r.obt_s - offset for r in rows)])
+    return max(last_utc, true_ca_utc_s + sc.ground.report.in_view_after_ca_s) + END_MARGIN_S
 
 
 @dataclass(frozen=True)
@@ -186,16 +224,14 @@ def rehearse_case(sc: Scenario, timeline: Timeline, belief: FlybyBelief, case: C
                   upload_utc_s: float | None = None, fidelity: str = "centroid") -> CaseResult:
     """Run one case in process and collect its outcome."""
     try:
-        world = rehearsal_scenario(sc, belief, case, upload_utc_s, fidelity)
+        world = rehearsal_scenario(sc, belief, case, upload_utc_s, fidelity, timeline)
     except ScenarioError as err:
         return CaseResult(case, float("nan"), float("nan"), error="; ".join(err.problems))
     f = world.universe.flyby
     result = CaseResult(case, f.ca_time_s, f.ca_distance_km)
-    downlink: list[bytes] = []
     insert_seqs: set[int] = set()
 
     def on_step(req: StepRequest, reply: StepReply, frame: np.ndarray | None) -> None:
-        downlink.extend(reply.downlink)
         for raw in req.uplink:
             try:
                 header, cmd = pus.decode_tc(raw, expected_apid=world.obsw.apid)
@@ -205,12 +241,8 @@ def rehearse_case(sc: Scenario, timeline: Timeline, belief: FlybyBelief, case: C
                 insert_seqs.add(header.request_id.seq_count)
 
     run = run_in_process(world, timeline, on_step=on_step)
-    tm = decoded_telemetry(downlink, "the dry run's downlink")
-    verifications = []
-    for raw in downlink:
-        header, report = pus.decode_tm(raw)
-        if isinstance(report, pus.Verification):
-            verifications.append((header.obt_s, report))
+    tm = received_telemetry(run.received, "the dry run's downlink")  # decoded once, by ground
+    verifications = [(p.header.obt_s, p.report) for p in run.received if isinstance(p.report, pus.Verification)]
     rows = run.uploads[0].rows if run.uploads else ()
     result.commands = _outcomes(rows, verifications, insert_seqs, world.universe.oscillator.initial_offset_s,
                                 world.epoch_utc)

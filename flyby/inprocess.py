@@ -75,7 +75,6 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
         out.truth += gs.truth
         out.log += [f"ground: {x}" for x in lines]
         out.alarms += ground.take_alarms()
-        out.alarms += ground.take_alarms()
         sim.accept_ground(GroundReply(step=gs.step, uplink=tuple(uplink)))
 
     request, blob = sim.begin()

@@ -1,7 +1,8 @@
 """Attitude determination: a multiplicative extended Kalman filter (MEKF) on the star tracker and the gyro.
 
 The state is the attitude quaternion ``q`` (body -> inertial, scalar-last) and the gyro bias ``b`` (rad/s, body);
-the filter (``filterpy.kalman.KalmanFilter``) holds the covariance of their small errors, ``x = [dtheta, db]``, with
+the filter holds the covariance ``P`` of their small errors, ``x = [dtheta, db]`` (its steps compiled in
+``obsw.mekf_kernels``), with
 the true attitude ``q (x) exp(dtheta)`` (``dtheta`` in body axes) and the true bias ``b + db``. Between star tracker
 solutions the attitude is propagated with the gyro rate (the mean of the period's two readings) less the estimated
 bias; the error obeys
@@ -27,18 +28,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
+from obsw import mekf_kernels
 from obsw.config import AttitudeConfig
 
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 DEG_SQRT_H_RAD_SQRT_S = math.pi / 180.0 / 60.0  # 1 deg/sqrt(h) = 1/60 deg/sqrt(s)
 _IDENTITY_Q = np.array([0.0, 0.0, 0.0, 1.0])
-
-
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def quaternion_product(p: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -90,13 +87,10 @@ class AttitudeEstimator:
         self.sigma_v = cfg.gyro_arw_deg_sqrt_h * DEG_SQRT_H_RAD_SQRT_S  # angle random walk, rad/sqrt(s)
         self.sigma_u = math.radians(cfg.gyro_bias_walk_deg_s_sqrt_s)  # bias random walk, rad/s/sqrt(s)
         st = np.asarray(cfg.star_tracker_noise_arcsec, dtype=float) * ARCSEC_RAD
-        kf = KalmanFilter(dim_x=6, dim_z=3)
-        kf.H = np.hstack([np.eye(3), np.zeros((3, 3))])
         # a noiseless tracker would make S singular: keep a floor far below any real tracker's noise
-        kf.R = np.diag(np.maximum(st, 1e-9) ** 2)
-        kf.P = np.diag([math.radians(cfg.initial_attitude_sigma_deg) ** 2] * 3
-                       + [math.radians(cfg.initial_bias_sigma_deg_s) ** 2] * 3)
-        self.kf = kf
+        self.R = np.diag(np.maximum(st, 1e-9) ** 2)
+        self.P = np.diag([math.radians(cfg.initial_attitude_sigma_deg) ** 2] * 3
+                         + [math.radians(cfg.initial_bias_sigma_deg_s) ** 2] * 3)
         self.q: NDArray[np.float64] | None = None
         self.bias = np.zeros(3)
         self._last_solution: tuple[float, ...] | None = None
@@ -108,7 +102,7 @@ class AttitudeEstimator:
     @property
     def bias_sigma_rad_s(self) -> float:
         """One-sigma gyro bias uncertainty of the worst axis, rad/s."""
-        return float(math.sqrt(max(float(np.max(np.diag(self.kf.P)[3:])), 0.0)))
+        return float(math.sqrt(max(float(np.max(np.diag(self.P)[3:])), 0.0)))
 
     @property
     def bias_known(self) -> bool:
@@ -118,7 +112,7 @@ class AttitudeEstimator:
     @property
     def attitude_sigma_rad(self) -> float:
         """One-sigma attitude uncertainty of the worst axis, rad."""
-        return float(math.sqrt(max(float(np.max(np.diag(self.kf.P)[:3])), 0.0)))
+        return float(math.sqrt(max(float(np.max(np.diag(self.P)[:3])), 0.0)))
 
     def propagate(self, gyro_rad_s: NDArray[np.float64], dt_s: float) -> None:
         """Advance the attitude by the gyro rate less the bias over ``dt_s``, and its error covariance."""
@@ -126,15 +120,7 @@ class AttitudeEstimator:
         if self.q is not None:
             q = quaternion_product(self.q, quaternion_of_rotvec(w * dt_s))
             self.q = q / math.sqrt(q @ q)
-        phi = np.eye(6)
-        phi[:3, :3] = np.eye(3) - _skew(w) * dt_s + 0.5 * (_skew(w) @ _skew(w)) * dt_s**2
-        phi[:3, 3:] = -np.eye(3) * dt_s + 0.5 * _skew(w) * dt_s**2
-        sv2, su2 = self.sigma_v**2, self.sigma_u**2
-        q_d = np.zeros((6, 6))
-        q_d[:3, :3] = np.eye(3) * (sv2 * dt_s + su2 * dt_s**3 / 3.0)
-        q_d[:3, 3:] = q_d[3:, :3] = -np.eye(3) * (su2 * dt_s**2 / 2.0)
-        q_d[3:, 3:] = np.eye(3) * (su2 * dt_s)
-        self.kf.predict(F=phi, Q=q_d)
+        self.P = mekf_kernels.predict(self.P, w, float(dt_s), self.sigma_v, self.sigma_u)
 
     def update(self, star_tracker_q: NDArray[np.float64]) -> NDArray[np.float64]:
         """Take one star tracker solution; return its innovation (rotation vector, body, rad)."""
@@ -144,13 +130,10 @@ class AttitudeEstimator:
             self.q = q_meas
             return np.zeros(3)
         z = rotvec_between(self.q, q_meas)
-        self.kf.x = np.zeros((6, 1))
-        self.kf.update(z.reshape(3, 1))
-        dx = self.kf.x.ravel()
+        dx, self.P = mekf_kernels.update(self.P, self.R, z)
         q = quaternion_product(self.q, quaternion_of_rotvec(dx[:3]))
         self.q = q / math.sqrt(q @ q)
         self.bias = self.bias + dx[3:]
-        self.kf.x = np.zeros((6, 1))
         self.updates += 1
         return z
 

@@ -51,6 +51,16 @@ def body_to_inertial_matrix(q: np.ndarray) -> np.ndarray:
     )
 
 
+def body_to_inertial_matrices(q: np.ndarray) -> np.ndarray:
+    """``body_to_inertial_matrix`` of each row of an (N, 4) array of unit quaternions: shape (N, 3, 3)."""
+    x, y, z, w = (np.asarray(q, dtype=float)[:, k] for k in range(4))
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=1)
+
+
 def quaternion_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Return v rotated by the unit scalar-last quaternion q (body vector -> inertial vector for a body->inertial q)."""
     return body_to_inertial_matrix(q) @ np.asarray(v, dtype=float)

@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from universe.config import BodiesConfig, FlybyConfig, UncertaintyConfig
-from universe.dynamics import body_to_inertial_matrix
+from universe.dynamics import body_to_inertial_matrices
 
 ArrayLike = float | np.ndarray
 
@@ -75,21 +75,19 @@ def _camera_axes_cached(boresight_body: tuple[float, ...]) -> np.ndarray:
     return np.vstack([x, y, z])
 
 
-def angle_between_rad(a: np.ndarray, b: np.ndarray) -> float:
-    """Return the angle between two non-zero 3-vectors, rad (atan2 form, accurate near 0 and pi)."""
-    ax, ay, az = (float(c) for c in a)
-    bx, by, bz = (float(c) for c in b)
-    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ax * bx + ay * by + az * bz)
+def angles_between_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The angles between the non-zero 3-vectors along the last axis of two arrays, rad (atan2 form, accurate near 0
+    and pi)."""
+    c = _cross(a, b)
+    return np.arctan2(np.sqrt(np.sum(c * c, axis=-1)), np.sum(a * b, axis=-1))
 
 
-def in_square_fov(los_camera: np.ndarray, fov_deg: float) -> bool:
-    """Return whether a direction in camera axes falls in the square pinhole field of view of side fov_deg."""
-    x, y, z = (float(c) for c in los_camera)
-    if z <= 0.0:
-        return False
+def in_square_fov_many(los_camera: np.ndarray, fov_deg: float) -> np.ndarray:
+    """Whether each row of an (N, 3) array of directions in camera axes falls in the square pinhole field of view of
+    side fov_deg."""
+    x, y, z = los_camera[:, 0], los_camera[:, 1], los_camera[:, 2]
     half_tan = float(np.tan(np.radians(fov_deg) / 2.0))
-    return abs(x) <= half_tan * z and abs(y) <= half_tan * z
+    return (z > 0.0) & (np.abs(x) <= half_tan * z) & (np.abs(y) <= half_tan * z)
 
 
 @dataclass(frozen=True)
@@ -116,6 +114,23 @@ class TruthSample:
     """angle between the camera boresight (inertial) and the line of sight to Dimorphos"""
     target_in_fov: bool
     """whether the centre of Dimorphos is inside the square field of view"""
+
+
+@dataclass(frozen=True)
+class TruthSamples:
+    """``TruthSample`` at N instants: each field an array over them (vectors shape (N, 3))."""
+
+    t_s: np.ndarray
+    range_to_dimorphos_m: np.ndarray
+    range_to_didymos_m: np.ndarray
+    los_dimorphos_inertial: np.ndarray
+    los_didymos_inertial: np.ndarray
+    los_dimorphos_body: np.ndarray
+    los_dimorphos_camera: np.ndarray
+    theta_rad: np.ndarray
+    phase_angle_deg: np.ndarray
+    pointing_error_rad: np.ndarray
+    target_in_fov: np.ndarray
 
 
 class FlybyGeometry:
@@ -196,38 +211,61 @@ class FlybyGeometry:
     ) -> TruthSample:
         """Return the true geometry at t_s for an attitude (scalar-last quaternion body -> inertial) and a camera."""
         q = np.asarray(q_body_to_inertial, dtype=float)
-        if q.shape != (4,) or abs(float(np.linalg.norm(q)) - 1.0) > 1e-6:
+        if q.shape != (4,):
             raise GeometryError(f"q_body_to_inertial must be a unit quaternion of shape (4,), got {q.tolist()}")
+        s = self.truth_samples(np.array([float(t_s)]), q[None, :], boresight_body, fov_deg)
+        return TruthSample(
+            t_s=float(t_s), range_to_dimorphos_m=float(s.range_to_dimorphos_m[0]),
+            range_to_didymos_m=float(s.range_to_didymos_m[0]), los_dimorphos_inertial=s.los_dimorphos_inertial[0],
+            los_didymos_inertial=s.los_didymos_inertial[0], los_dimorphos_body=s.los_dimorphos_body[0],
+            los_dimorphos_camera=s.los_dimorphos_camera[0], theta_rad=float(s.theta_rad[0]),
+            phase_angle_deg=float(s.phase_angle_deg[0]), pointing_error_rad=float(s.pointing_error_rad[0]),
+            target_in_fov=bool(s.target_in_fov[0]),
+        )
+
+    def truth_samples(
+        self, t_s: np.ndarray, q_body_to_inertial: np.ndarray, boresight_body: np.ndarray, fov_deg: float
+    ) -> TruthSamples:
+        """``truth_sample`` at N times (shape (N,)) and attitudes (shape (N, 4)) at once: each field an array."""
+        t = np.asarray(t_s, dtype=float)
+        q = np.asarray(q_body_to_inertial, dtype=float)
+        if q.ndim != 2 or q.shape[1] != 4 or t.shape != (q.shape[0],):
+            raise GeometryError(f"truth_samples needs N times and N quaternions, got shapes {t.shape} and {q.shape}")
+        bad = np.flatnonzero(~(np.abs(np.sqrt(np.sum(q * q, axis=1)) - 1.0) <= 1e-6))
+        if bad.size:
+            raise GeometryError(f"q_body_to_inertial must be a unit quaternion of shape (4,), got {q[bad[0]].tolist()}")
         if not 0.0 < fov_deg < 180.0:
             raise GeometryError(f"fov_deg must be in (0, 180), got {fov_deg}")
-        r_sc = self.spacecraft_position_m(t_s)
-        to_dim = self.dimorphos_position_m(t_s) - r_sc
-        to_did = self.didymos_position_m(t_s) - r_sc
-        range_dim = float(np.linalg.norm(to_dim))
-        range_did = float(np.linalg.norm(to_did))
-        body_to_inertial = body_to_inertial_matrix(q)
+        r_sc = self.spacecraft_position_m(t)
+        unit = self._orbit_unit(t)
+        to_dim = self.dimorphos_arm_m * unit - r_sc
+        to_did = -self.didymos_arm_m * unit - r_sc
+        range_dim = np.sqrt(np.sum(to_dim * to_dim, axis=1))
+        range_did = np.sqrt(np.sum(to_did * to_did, axis=1))
+        body_to_inertial = body_to_inertial_matrices(q)
         axes = camera_axes_body(np.asarray(boresight_body, dtype=float))
         boresight_inertial = body_to_inertial @ axes[2]
         # at a body's very centre every direction leads to it: the line of sight is taken along the boresight
-        los_dim = to_dim / range_dim if range_dim > 0.0 else boresight_inertial
-        los_did = to_did / range_did if range_did > 0.0 else boresight_inertial
-        los_body = body_to_inertial.T @ los_dim
-        los_cam = axes @ los_body
-        velocity = self.spacecraft_velocity_m_s(t_s) - self.dimorphos_velocity_m_s(t_s)
-        return TruthSample(
-            t_s=float(t_s),
+        los_dim = np.where((range_dim > 0.0)[:, None], to_dim / np.where(range_dim > 0.0, range_dim, 1.0)[:, None],
+                           boresight_inertial)
+        los_did = np.where((range_did > 0.0)[:, None], to_did / np.where(range_did > 0.0, range_did, 1.0)[:, None],
+                           boresight_inertial)
+        los_body = np.einsum("nji,nj->ni", body_to_inertial, los_dim)
+        los_cam = los_body @ axes.T
+        velocity = self.spacecraft_velocity_m_s(t) - self.dimorphos_velocity_m_s(t)
+        return TruthSamples(
+            t_s=t,
             range_to_dimorphos_m=range_dim,
             range_to_didymos_m=range_did,
             los_dimorphos_inertial=los_dim,
             los_didymos_inertial=los_did,
             los_dimorphos_body=los_body,
             los_dimorphos_camera=los_cam,
-            theta_rad=angle_between_rad(velocity, los_dim),
-            phase_angle_deg=float(np.degrees(angle_between_rad(self._sun, -los_dim))),
-            pointing_error_rad=angle_between_rad(boresight_inertial, los_dim),
-            target_in_fov=in_square_fov(los_cam, fov_deg),
+            theta_rad=angles_between_rad(velocity, los_dim),
+            phase_angle_deg=np.degrees(angles_between_rad(np.broadcast_to(self._sun, los_dim.shape), -los_dim)),
+            pointing_error_rad=angles_between_rad(boresight_inertial, los_dim),
+            target_in_fov=in_square_fov_many(los_cam, fov_deg),
         )
-
 
 def nominal_ca(flyby: FlybyConfig, unc: UncertaintyConfig, rng: np.random.Generator) -> tuple[float, float]:
     """Return the (C/A time s, C/A distance km) that ground believes: truth plus a seeded error.

@@ -8,6 +8,7 @@ spawned into one independent stream per subsystem, so adding draws to one never 
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -47,8 +48,18 @@ def pointing_attitude(los_inertial: np.ndarray, roll_ref_inertial: np.ndarray) -
     return Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z]))
 
 
-def _vec(v: np.ndarray) -> tuple[float, float, float]:
-    return (float(v[0]), float(v[1]), float(v[2]))
+@dataclass(slots=True)
+class _Period:
+    """The state of one control period, kept until the next ground step turns it into a TruthRecord: the geometry
+    of all the periods since the last one is computed at once (one vectorised call instead of one per period)."""
+
+    t_s: float
+    obt_s: float
+    q: np.ndarray
+    omega_rad_s: tuple[float, ...]
+    wheel_momentum_nms: tuple[float, ...]
+    wheel_torque_nm: tuple[float, ...]
+    frame: dict[str, object] | None = None  # the frame exposed at this period: its id and true target positions
 
 
 class FaultBook:
@@ -121,7 +132,7 @@ class Universe:
         self.ground_period_s = ground_period_s
         self._next_ground_s = u.start_s
         self._ground_step = 0
-        self._truth: list[TruthRecord] = []
+        self._truth: list[_Period] = []
         self._log: list[str] = []
         self._boresight = np.asarray(u.camera.boresight_body, dtype=float)
         self._history = self._approach_history()
@@ -237,8 +248,7 @@ class Universe:
             measurement = None
         self.last_frame = pixels
         # the truth record of this period (already appended) gets the frame's true target positions
-        self._truth[-1] = self._truth[-1].model_copy(update={
-            "frame_id": self.frame_count, "dimorphos_px": dim, "didymos_px": did})
+        self._truth[-1].frame = {"frame_id": self.frame_count, "dimorphos_px": dim, "didymos_px": did}
         side = self.cfg.camera.resolution_px
         meta = FrameMeta(frame_id=self.frame_count, obt_s=self._obt_s, width=side, height=side,
                          bit_depth=self.cfg.camera.bit_depth, exposure_s=exposure_s, measurement=measurement)
@@ -257,18 +267,34 @@ class Universe:
         return render_at(self, exposure_s, t_s, state)[0]
 
     def _record_truth(self) -> None:
-        ts = self.geometry.truth_sample(self.t_s, self.state.q, self._boresight, self.cfg.camera.fov_deg)
-        self._truth.append(TruthRecord(
-            t_s=self.t_s, obt_s=self._obt_s,
-            q=tuple(float(c) for c in self.state.q),
+        self._truth.append(_Period(
+            t_s=self.t_s, obt_s=self._obt_s, q=np.array(self.state.q, dtype=float),
             omega_rad_s=tuple(float(c) for c in self.state.omega_rad_s),
             wheel_momentum_nms=tuple(float(c) for c in self.dynamics.wheel_momentum_nms(self.state)),
-            wheel_torque_nm=tuple(float(c) for c in self.torque_nm),
-            pointing_error_rad=ts.pointing_error_rad, target_in_fov=ts.target_in_fov,
-            range_m=ts.range_to_dimorphos_m, theta_rad=ts.theta_rad, phase_angle_deg=ts.phase_angle_deg,
-            los_dimorphos_inertial=_vec(ts.los_dimorphos_inertial), los_didymos_inertial=_vec(ts.los_didymos_inertial),
-            dimorphos_camera=_vec(ts.los_dimorphos_camera), range_didymos_m=ts.range_to_didymos_m,
-        ))
+            wheel_torque_nm=tuple(float(c) for c in self.torque_nm)))
+
+    def _truth_records(self) -> list[TruthRecord]:
+        """The TruthRecords of the periods kept since the last ground step, their geometry computed at once."""
+        periods, self._truth = self._truth, []
+        if not periods:
+            return []
+        ts = self.geometry.truth_samples(np.array([p.t_s for p in periods]), np.array([p.q for p in periods]),
+                                         self._boresight, self.cfg.camera.fov_deg)
+        # whole columns to Python floats at once: per element, the conversions cost more than the geometry
+        err, fov, rng, theta, phase, rng_did = (a.tolist() for a in (
+            ts.pointing_error_rad, ts.target_in_fov, ts.range_to_dimorphos_m, ts.theta_rad, ts.phase_angle_deg,
+            ts.range_to_didymos_m))
+        los_dim, los_did, cam = (list(map(tuple, a.tolist())) for a in (
+            ts.los_dimorphos_inertial, ts.los_didymos_inertial, ts.los_dimorphos_camera))
+        out = []
+        for k, p in enumerate(periods):
+            out.append(TruthRecord(
+                t_s=p.t_s, obt_s=p.obt_s, q=tuple(p.q.tolist()), omega_rad_s=p.omega_rad_s,
+                wheel_momentum_nms=p.wheel_momentum_nms, wheel_torque_nm=p.wheel_torque_nm,
+                pointing_error_rad=err[k], target_in_fov=fov[k], range_m=rng[k], theta_rad=theta[k],
+                phase_angle_deg=phase[k], los_dimorphos_inertial=los_dim[k], los_didymos_inertial=los_did[k],
+                dimorphos_camera=cam[k], range_didymos_m=rng_did[k], **(p.frame or {})))
+        return out
 
     def dark_frame(self, exposure_s: float | None = None) -> np.ndarray:
         """The run's dark frame: one frame with the shutter closed (``exposure_s``, default the camera's), uint16 DN,
@@ -298,8 +324,7 @@ class Universe:
             arrived = [(t, p) for t, p in self._history if t <= self.t_s] + arrived
             self._history = [(t, p) for t, p in self._history if t > self.t_s]
         msg = GroundStep(step=self._ground_step, utc_s=self.t_s, downlink=tuple(p for _, p in arrived),
-                         downlink_utc_s=tuple(t for t, _ in arrived), truth=tuple(self._truth))
-        self._truth = []
+                         downlink_utc_s=tuple(t for t, _ in arrived), truth=tuple(self._truth_records()))
         self._ground_step += 1
         self._next_ground_s += self.ground_period_s
         return msg

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.runfolder import RunData
-from analysis.telemetry import decoded_telemetry
+from analysis.telemetry import received_telemetry
 from analysis.truth import Truth
 from contracts.clock import WallClock
 from contracts.errors import ScenarioError
@@ -93,7 +93,7 @@ def run_one(payload: str, k: int) -> RunResult:
         seed, data, values = drawn_values(sc, campaign.seed, k)
         scenario = scenario_from_dict(data, f"run {k}")
         out = run_in_process(scenario, campaign.timeline)
-        tm = decoded_telemetry([p.raw for p in out.received], f"run {k}")
+        tm = received_telemetry(out.received, f"run {k}")
         row, _ = run_row(RunData(Path(f"<run {k}>"), scenario, Truth.from_records(out.truth), tm),
                          scenario.ground.report)
         status, error = "ok", None

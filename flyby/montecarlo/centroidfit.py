@@ -33,7 +33,7 @@ import yaml
 from numpy.typing import NDArray
 from scipy.optimize import nnls
 
-from analysis.telemetry import decoded_telemetry
+from analysis.telemetry import received_telemetry
 from contracts import pus
 from contracts.errors import ScenarioError
 from contracts.exitcodes import EXIT_CONFIG, EXIT_OK
@@ -148,7 +148,7 @@ def fit_run(payload: str, k: int) -> FrameSamples:
     campaign = campaign_of(payload)
     run = dispersed_run(campaign.scenario, campaign.seed, k)
     out = run_in_process(run.scenario, campaign.timeline)
-    tm = decoded_telemetry([p.raw for p in out.received], f"run {k}")
+    tm = received_telemetry(out.received, f"run {k}")
     return frame_samples(run.scenario, out.truth, tm.navigation, k)
 
 

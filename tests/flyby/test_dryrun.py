@@ -62,6 +62,20 @@ def test_case_world_is_grounds_belief_moved_by_the_case(tmp_path: Path) -> None:
     assert {(c.time_sigma, c.distance_sigma) for c in cases()} == {(0, 0), (-3, -3), (-3, 3), (3, -3), (3, 3)}
 
 
+def test_a_case_ends_after_its_last_release_and_its_scoring_window() -> None:
+    """A case stops once its last row is released (on ground's C/A or on the true one, whichever is later) and the
+    in-view window after the true C/A has closed, never after the scenario's end."""
+    sc, timeline = load_run_inputs(NOMINAL)
+    assert timeline is not None
+    belief = compose.ground_belief(sc)
+    last = max(_ca_offsets(timeline))
+    for case in cases():
+        world = rehearsal_scenario(sc, belief, case, timeline=timeline)
+        true_ca = world.universe.flyby.ca_time_s
+        wanted = max(belief.ca_utc_s + last, true_ca + last, true_ca + sc.ground.report.in_view_after_ca_s)
+        assert wanted < world.universe.end_s <= min(sc.universe.end_s, wanted + 6.0)
+
+
 def test_early_knowledge_is_flagged(capsys: pytest.CaptureFixture[str]) -> None:
     """Ground's C/A 23.6 s early: the rows whose C/A tag falls before upload + light time + margin (computed here from
     the scenario) are uploaded late with a warning in every case, and released on board on arrival: the flyby

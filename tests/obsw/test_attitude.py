@@ -29,7 +29,7 @@ def test_attitude_variance_over_an_outage_grows_as_the_closed_form() -> None:
     st = np.asarray(cfg.star_tracker_noise_arcsec) * ARCSEC_RAD
     for _ in range(50):  # converge: the attitude-bias covariance is no longer zero
         est.step(np.zeros(3), _noisy(q, st, rng), DT)
-    p0 = est.kf.P.copy()
+    p0 = est.P.copy()
     sv, su = cfg.gyro_arw_deg_sqrt_h * DEG_SQRT_H_RAD_SQRT_S, math.radians(cfg.gyro_bias_walk_deg_s_sqrt_s)
     est.bias = np.zeros(3)  # at rest with a zero bias estimate, w = 0: the propagation is exact
     est._last_gyro = None
@@ -40,7 +40,7 @@ def test_attitude_variance_over_an_outage_grows_as_the_closed_form() -> None:
     for axis in range(3):
         ptt, ptb, pbb = p0[axis, axis], p0[axis, axis + 3], p0[axis + 3, axis + 3]
         expected = ptt - 2 * ptb * t + pbb * t**2 + sv**2 * t + su**2 * t**3 / 3
-        assert est.kf.P[axis, axis] == pytest.approx(expected, rel=1e-9)
+        assert est.P[axis, axis] == pytest.approx(expected, rel=1e-9)
     assert est.outage
 
 
@@ -61,7 +61,7 @@ def test_a_constant_bias_is_observed_as_the_slope_of_the_solutions() -> None:
         est.step(bias, _noisy(q, st, rng), DT)  # at rest: the gyro reads its bias
     for axis in range(3):
         closed = 12 * st[axis] ** 2 / (DT**2 * n * (n**2 - 1))
-        assert est.kf.P[axis + 3, axis + 3] == pytest.approx(closed, rel=2e-3)
+        assert est.P[axis + 3, axis + 3] == pytest.approx(closed, rel=2e-3)
         assert abs(est.bias[axis] - bias[axis]) < 4 * math.sqrt(closed)
 
 

@@ -3,7 +3,9 @@ telemetry (housekeeping by its zero-time fields), torques, frames, uplink and tr
 software before the executive (commit a3c702c; recorded again at 30b1117, after the PUS-C and TC authentication
 changes, with the in-process keys fixed by the seed; recorded again with the camera's detector on and the imaging
 chain robust to it, and with the attitude estimator (a multiplicative EKF that filters the star tracker and removes
-the estimated gyro bias) and on-board FDIR, both changes of flight behaviour on purpose), for the same seed.
+the estimated gyro bias) and on-board FDIR, both changes of flight behaviour on purpose; recorded again when the MEKF's
+covariance steps were compiled and the universe's truth geometry vectorised, the same equations rounded in another
+order), for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -29,10 +31,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "48b518ff11d42f103de23fb3e2dcea3c4119c72887093346619f468cd3e983ff",
-    "replies": "9bfe4af4a35fdf4002c5afba10a07e503c9579c028d43c095f95981003acc31c",
+    "tm": "07c334db3c31d07ef182af483609fd27a650645ebc3e6d263fc9204567dea6a1",
+    "replies": "a0fc6cae7205a2724696a393f918d131c41e312790fedb632e4935dccb7115f9",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "1aa7432acf6edcb2673f8d75aba07baeb685e2b5dceac1e3ce41c830b5b7b41e",
+    "truth": "85c29b756fdee3dd930febf8241cf3d4ff93dc150fb31761b61216672b688c9a",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,

@@ -168,4 +168,6 @@ def test_the_universe_sends_a_measurement_and_no_pixels() -> None:
     req, blob = u.advance(StepReply(step=0, wheel_torque_nm=(0.0, 0.0, 0.0),
                                     frame_request=FrameRequest(exposure_s=0.01)))  # type: ignore[misc]
     assert blob == b"" and req.frame is not None and req.frame.measurement is not None
-    assert u._truth[-1].dimorphos_px == pytest.approx(req.frame.measurement.dimorphos_col_row, abs=1e-9)
+    truth = u.ground_step().truth[-1]  # the period's truth, as ground receives it
+    assert truth.frame_id == req.frame.frame_id
+    assert truth.dimorphos_px == pytest.approx(req.frame.measurement.dimorphos_col_row, abs=1e-9)

@@ -1,0 +1,77 @@
+"""Compiled covariance steps of the attitude MEKF (Numba): the prediction and the star tracker update of its 6x6
+error covariance, one call each per control period.
+
+The equations are ``obsw.attitude``'s (its module docstring): the discrete transition ``Phi`` and process noise
+``Q_d`` of ``x = [dtheta, db]`` under ``dtheta' = -[w x] dtheta - db - n_v, db' = n_u``, and the Kalman update with
+``H = [I 0]`` in Joseph form, ``P = (I - K H) P (I - K H)^T + K R K^T``, which keeps ``P`` symmetric and positive
+for any gain. They were generic 6x6 matrix products through filterpy, a fifth of the flight software's time per
+period; here they are plain loops in double precision without fast-math (no reassociation), compiled once and
+cached next to this file.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def _mul(a: np.ndarray, b: np.ndarray, transpose_b: bool) -> np.ndarray:
+    """``a b`` (or ``a b^T``), summed in index order."""
+    n, m = a.shape[0], b.shape[0] if transpose_b else b.shape[1]
+    out = np.zeros((n, m))
+    for i in range(n):
+        for j in range(m):
+            acc = 0.0
+            for k in range(a.shape[1]):
+                acc += a[i, k] * (b[j, k] if transpose_b else b[k, j])
+            out[i, j] = acc
+    return out
+
+
+@njit(cache=True, nogil=True)
+def transition(w: np.ndarray, dt_s: float) -> np.ndarray:
+    """``Phi`` over ``dt_s`` at body rate ``w`` (rad/s): second order in ``w dt``, exact for ``w = 0``."""
+    sk = np.zeros((3, 3))
+    sk[0, 1], sk[0, 2], sk[1, 0] = -w[2], w[1], w[2]
+    sk[1, 2], sk[2, 0], sk[2, 1] = -w[0], -w[1], w[0]
+    phi = np.eye(6)
+    for i in range(3):
+        for j in range(3):
+            sk2 = sk[i, 0] * sk[0, j] + sk[i, 1] * sk[1, j] + sk[i, 2] * sk[2, j]
+            phi[i, j] = (1.0 if i == j else 0.0) - sk[i, j] * dt_s + 0.5 * sk2 * dt_s * dt_s
+            phi[i, 3 + j] = (-dt_s if i == j else 0.0) + 0.5 * sk[i, j] * dt_s * dt_s
+    return phi
+
+
+@njit(cache=True, nogil=True)
+def predict(p: np.ndarray, w: np.ndarray, dt_s: float, sigma_v: float, sigma_u: float) -> np.ndarray:
+    """``Phi P Phi^T + Q_d``: the error covariance ``p`` carried over ``dt_s`` at body rate ``w`` (rad/s), with the
+    gyro's angle random walk ``sigma_v`` (rad/sqrt(s)) and the bias walk ``sigma_u`` (rad/s/sqrt(s))."""
+    phi = transition(w, dt_s)
+    out = _mul(_mul(phi, p, False), phi, True)
+    sv2, su2 = sigma_v * sigma_v, sigma_u * sigma_u
+    q_tt = sv2 * dt_s + su2 * dt_s ** 3 / 3.0
+    q_tb = -(su2 * dt_s ** 2 / 2.0)
+    q_bb = su2 * dt_s
+    for i in range(3):
+        out[i, i] += q_tt
+        out[i, 3 + i] += q_tb
+        out[3 + i, i] += q_tb
+        out[3 + i, 3 + i] += q_bb
+    return out
+
+
+@njit(cache=True, nogil=True)
+def update(p: np.ndarray, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The Kalman update of a zero error state with covariance ``p`` on a measurement ``z`` of ``dtheta`` with
+    noise covariance ``r`` (3x3): the state correction ``dx`` (6) and the updated covariance (Joseph form)."""
+    s = p[:3, :3] + r
+    k = _mul(np.ascontiguousarray(p[:, :3]), np.linalg.inv(s), False)  # P H^T S^-1
+    dx = np.zeros(6)
+    for i in range(6):
+        dx[i] = k[i, 0] * z[0] + k[i, 1] * z[1] + k[i, 2] * z[2]
+    i_kh = np.eye(6)
+    i_kh[:, :3] -= k
+    out = _mul(_mul(i_kh, p, False), i_kh, True) + _mul(_mul(k, r, False), k, True)
+    return dx, out
