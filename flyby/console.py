@@ -244,7 +244,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
                    help="the run's scenario: ground's belief, link and requirements for a dry run")
     g.add_argument("--trajectory", type=Path, default=None, metavar="FILE",
                    help="dry run against this trajectory file (as --upload-trajectory) instead of ground's belief")
-    g.add_argument("--jobs", type=int, default=2, help="dry-run cases run at a time, in separate processes")
+    g.add_argument("--jobs", type=int, default=None,
+                   help="dry-run cases run at a time, in separate processes (default: all five at once, the system "
+                   "sharing the cores among them)")
     g.add_argument("--fidelity", choices=["centroid", "image"], default="centroid",
                    help="dry run with the imaging chain's output modelled (centroid, fast) or frames rendered (image)")
     g.add_argument("--watch", action="store_true", help="print housekeeping, events and verifications as they arrive")

@@ -265,12 +265,15 @@ def _rehearse(args: tuple[Scenario, Timeline, FlybyBelief, Case, float | None, s
     return rehearse_case(*args)
 
 
-def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None, jobs: int = 1,
+def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None, jobs: int | None = 1,
             corners: bool = True, upload_utc_s: float | None = None, fidelity: str = "centroid") -> list[CaseResult]:
     """Every case of the dry run (ground's belief first, then its corners unless ``corners`` is False), ``jobs``
-    cases at a time in separate processes; ``upload_utc_s`` and ``fidelity`` as in ``rehearsal_scenario``."""
+    cases at a time in separate processes (None: every case at once, the system sharing the cores among them: five
+    cases on two cores then take two and a half case-times, not three); ``upload_utc_s`` and ``fidelity`` as in
+    ``rehearsal_scenario``."""
     belief = compose.ground_belief(sc) if belief is None else belief
     todo = [(sc, timeline, belief, c, upload_utc_s, fidelity) for c in (cases() if corners else cases()[:1])]
+    jobs = len(todo) if jobs is None else jobs
     if jobs <= 1:
         return [_rehearse(t) for t in todo]
     with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
@@ -384,7 +387,7 @@ def prepare(scenario_path: Path, timeline_path: Path, trajectory: Path | None) -
     return sc, timeline, belief
 
 
-def run_dry_run(scenario_path: Path, timeline_path: Path, trajectory: Path | None = None, jobs: int = 1,
+def run_dry_run(scenario_path: Path, timeline_path: Path, trajectory: Path | None = None, jobs: int | None = 1,
                 upload_utc_s: float | None = None, fidelity: str = "centroid", stream: Any = None) -> int:
     """Prepare, run and print a dry run; return its exit code (0 pass, 4 a refusal or a failed requirement,
     2 unusable input)."""

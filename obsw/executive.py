@@ -145,6 +145,9 @@ class Executive:
         self._cost_s = cost_s
         self._observer = observer
         self._queues: dict[Task, list[tuple[tuple[float, int, int], Event]]] = {t: [] for t in self.tasks}
+        # who hears each kind, looked up at every post (a scan of every task's subscriptions was most of post's time)
+        self._subscribers: dict[EventKind, tuple[Task, ...]] = {
+            k: tuple(t for t, spec in self.tasks.items() if k in spec.subscribes) for k in EventKind}
         self._timers: list[tuple[EventKind, Callable[[], float | None]]] = []
         self._sequence = 0
         self._carry_s = 0.0  # work of the last minor frame still running at this tick, s after it
@@ -162,9 +165,8 @@ class Executive:
             raise InternalFault(f"event {kind.name}: time {time_s!r} is not a finite OBT")
         ev = Event(float(time_s), int(priority), self._sequence, kind, payload)
         self._sequence += 1
-        for task, spec in self.tasks.items():
-            if kind in spec.subscribes:
-                heapq.heappush(self._queues[task], (ev.key, ev))
+        for task in self._subscribers[kind]:
+            heapq.heappush(self._queues[task], (ev.key, ev))
 
     @property
     def sequence(self) -> int:
