@@ -150,6 +150,16 @@ class TrajectoryRecognizer:
             }
         )
 
+    def predicted_theta(self, obt_s: float) -> tuple[float, float]:
+        """(in-plane LOS angle rad, its one-sigma rad) the continuous estimate predicts at ``obt_s``: the estimate's
+        covariance carried through d theta / d (C/A time, C/A distance)."""
+        t, d_km, cov = self.continuous()
+        v, d_m = self.nominal.speed_m_s, d_km * 1e3
+        tau = obt_s - t
+        r2 = d_m * d_m + (v * tau) ** 2
+        jac = np.array([-v * d_m / r2, -v * tau / r2 * 1e3])  # per s of C/A time, per km of C/A distance
+        return float(np.arctan2(d_m, -v * tau)), float(np.sqrt(max(float(jac @ cov @ jac), 0.0)))
+
     def _solve(self) -> tuple[float, float, NDArray[np.float64]]:
         nom = self.nominal
         sig_t, sig_d_m = nom.ca_time_sigma_s, nom.ca_distance_sigma_km * 1e3

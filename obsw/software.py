@@ -63,8 +63,9 @@ from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
-from obsw.lock_gate import LockGate
-from obsw.modes import CaEstimate, Cause, Fault, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
+from obsw.lock_gate import LockGate, Prediction
+from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeManager, TargetDetected, Tick,
+                        WheelSaturation)
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.monitoring import ParameterMonitor
 from obsw.recognition import TrajectoryRecognizer
@@ -848,7 +849,7 @@ class FlightSoftware:
         d_col, d_row = det.dimorphos_offset_px
         los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
         los_i = Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
-        gate = self.lock_gate.check(self._recognised_trajectory(), obt, los_i)
+        gate = self.lock_gate.check(self._recognised_trajectory(), obt, los_i, self._prediction(obt))
         if not gate.accepted:
             if self.lock_gate.run == 1:
                 self._event(pus.FalseLockEvent(frame_id=meta.frame_id, offset_rad=gate.innovation_rad,
@@ -857,6 +858,7 @@ class FlightSoftware:
                             f"deg from the recognised trajectory's prediction (gate {np.degrees(gate.gate_rad):.3f} "
                             "deg): its line of sight is refused")
             self.detections = None  # the chain identifies afresh rather than by continuity with the false target
+            self._mode_event(self.modes.handle(FalseLock(meta.frame_id), act.now_s), act.now_s)
         else:
             self._last_seen_obt = obt
             act.emit(EventKind.MEASUREMENT, Measurement(obt, los_i, meta.frame_id))
@@ -864,6 +866,19 @@ class FlightSoftware:
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
         return det
+
+    def _prediction(self, obt: float) -> Prediction | None:
+        """What the continuous C/A estimate predicts of Dimorphos's line of sight at ``obt``, once it is trusted."""
+        rec = self.recognizer
+        if rec is None or rec.measurement_count < self.cfg.min_recognition_measurements:
+            return None
+        theta, sigma = rec.predicted_theta(obt)
+        t, d_km, _ = rec.continuous()
+        range_m = math.hypot(d_km * 1e3, rec.nominal.speed_m_s * (obt - t))
+        targets = self.cfg.targets
+        return Prediction(theta_rad=theta, sigma_rad=sigma,
+                          noise_rad=math.hypot(self.cfg.recognition.angle_noise_rad, self._attitude_sigma_rad),
+                          radius_rad=targets.max_axis_ratio * targets.dimorphos_diameter_m / 2 / range_m)
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
