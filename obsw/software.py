@@ -63,7 +63,7 @@ from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
-from obsw.lock_gate import LockGate, Prediction
+from obsw.lock_gate import Estimate, LockGate, Prediction
 from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeManager, TargetDetected, Tick,
                         WheelSaturation)
 from obsw.modes import SetMode as SetModeTrigger
@@ -868,17 +868,20 @@ class FlightSoftware:
         return det
 
     def _prediction(self, obt: float) -> Prediction | None:
-        """What the continuous C/A estimate predicts of Dimorphos's line of sight at ``obt``, once it is trusted."""
+        """What the reference C/A estimate (``obsw.lock_gate.ReferenceEstimates``) predicts of Dimorphos's line of
+        sight at ``obt``, once the recognition is trusted."""
         rec = self.recognizer
-        if rec is None or rec.measurement_count < self.cfg.min_recognition_measurements:
+        newest = None if rec is None else rec.last_measurement_obt_s
+        if rec is None or newest is None or rec.measurement_count < self.cfg.min_recognition_measurements:
             return None
-        theta, sigma = rec.predicted_theta(obt)
-        t, d_km, _ = rec.continuous()
-        range_m = math.hypot(d_km * 1e3, rec.nominal.speed_m_s * (obt - t))
+        t, d_km, cov = rec.continuous()
+        self.lock_gate.references.add(Estimate(newest, t, d_km, cov))
+        reference = self.lock_gate.reference(obt)
+        assert reference is not None  # one was just added
         targets = self.cfg.targets
-        return Prediction(theta_rad=theta, sigma_rad=sigma,
-                          noise_rad=math.hypot(self.cfg.recognition.angle_noise_rad, self._attitude_sigma_rad),
-                          radius_rad=targets.max_axis_ratio * targets.dimorphos_diameter_m / 2 / range_m)
+        return reference.prediction(obt, rec.nominal.speed_m_s,
+                                    math.hypot(self.cfg.recognition.angle_noise_rad, self._attitude_sigma_rad),
+                                    targets.max_axis_ratio * targets.dimorphos_diameter_m / 2)
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
