@@ -17,7 +17,7 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
 5. IMAGING: a frame whose readout and FPGA stages are over goes through the software stage of the imaging chain
    (a saturated or blank frame is discarded, ``obsw.frame_quality``); Dimorphos's line of sight, turned inertial with
    the attitude at its exposure and accepted by the false-lock gate (``obsw.lock_gate``), is a measurement from the
-   task's finish on;
+   task's finish on; a line of sight refused in NOMINAL_TRACKING hands over to AUTONOMOUS_TRACKING;
 6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time;
 7. MODES: the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
    on-board estimate, end of flyby);
