@@ -188,6 +188,16 @@ class FdirConfig(Config):
         0.02, ge=0, description="the gate grows by this per second since the last accepted line of sight, deg/s (the "
         "Dimorphos offset from the barycentre turns with the line of sight; after 100 s the gate spans the field of "
         "view and anything is taken again)")
+    false_lock_residual_sigma: float = Field(
+        5.0, gt=0, description="a line of sight farther from the continuous C/A estimate's prediction than the "
+        "apparent radius of Dimorphos plus this many one-sigma (centroid, attitude and estimate noise combined) is "
+        "refused as a false lock, sigma (a normal deviate beyond 5 sigma has a probability of 5.7e-7: below 1e-3 over "
+        "the ~500 lines of sight of a flyby)")
+    false_lock_reference_lag_s: float = Field(
+        30.0, ge=0, description="the residual is taken from the continuous C/A estimate as it stood this long before "
+        "the exposure (during a run of refusals, before the run's first), s: a creep reaching the bound within the "
+        "lag is refused against an estimate from before it began (at C/A-100 s: 0.0013 deg/s over the 0.039 deg "
+        "bound; the plume of configs/scenarios/faults/plume-x100.yaml moves 0.15 deg in 3 s)")
     uplink_first_seq_count: int = Field(0, ge=0, description="sequence count of the first telecommand ground "
                                         "radiates (ground.segment counts from 0 at the start of a run)")
     uplink_seq_modulo: int = Field(

@@ -8,7 +8,10 @@
 # which follows the trajectory recognised on board; ``standby_after_ca_s`` after C/A the flyby is over
 # and it returns to STANDBY. Losing the target for ``target_lost_timeout_s`` in NOMINAL_TRACKING sends it
 # back to ACQUISITION; in AUTONOMOUS_TRACKING it does not, because near C/A the on-board trajectory points
-# the camera better than a search would. A fault or a wheel saturation sends any mode but SAFE to SAFE;
+# the camera better than a search would. A false lock found in NOMINAL_TRACKING (a line of sight refused because
+# the recognised trajectory cannot explain it) hands over to AUTONOMOUS_TRACKING at once: the image feedback is
+# on something else, the ground's nominal alone drifts off, and the recognised trajectory, which only accepted
+# lines of sight shaped, is the best pointing left. A fault or a wheel saturation sends any mode but SAFE to SAFE;
 # only a command leaves SAFE (to STANDBY).
 #
 # Everything is one table: EVENT_TRANSITIONS for on-board events (first matching row wins, so at most one
@@ -40,6 +43,7 @@ class Cause(StrEnum):
     WHEEL_SATURATION = "WHEEL_SATURATION"
     FAULT = "FAULT"
     AUTONOMY_TIME = "AUTONOMY_TIME"
+    FALSE_LOCK = "FALSE_LOCK"
     FLYBY_OVER = "FLYBY_OVER"
 
 
@@ -56,6 +60,14 @@ class SetMode:
 @dataclass(frozen=True, slots=True)
 class TargetDetected:
     """The imaging subsystem found the target in the latest frame."""
+
+
+@dataclass(frozen=True, slots=True)
+class FalseLock:
+    """The false-lock gate refused the line of sight of frame ``frame_id``: the recognised trajectory cannot explain
+    it (obsw.lock_gate)."""
+
+    frame_id: int
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,7 +96,7 @@ class Tick:
     """On-board time has advanced: check the time-driven rows (C/A-30 s, flyby over, target lost)."""
 
 
-Trigger = SetMode | TargetDetected | WheelSaturation | Fault | CaEstimate | Tick
+Trigger = SetMode | TargetDetected | FalseLock | WheelSaturation | Fault | CaEstimate | Tick
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,6 +167,7 @@ EVENT_TRANSITIONS: tuple[_Row, ...] = (
     _Row(_NOT_SAFE, WheelSaturation, _always, _S, Cause.WHEEL_SATURATION),
     _Row(frozenset({_AQ}), TargetDetected, _always, _NT, Cause.TARGET_ACQUIRED),
     _Row(_FLYING_BY, Tick, _flyby_over, _SB, Cause.FLYBY_OVER),
+    _Row(frozenset({_NT}), FalseLock, _always, _AT, Cause.FALSE_LOCK),
     _Row(frozenset({_NT}), Tick, _autonomy_time, _AT, Cause.AUTONOMY_TIME),
     _Row(frozenset({_NT}), Tick, _target_lost, _AQ, Cause.TARGET_LOST),
 )
@@ -209,7 +222,7 @@ class ModeManager:
                 raise InternalFault(f"mode manager: CaEstimate.ca_obt_s must be finite, got {trigger.ca_obt_s!r}")
             self.ca_obt_s = float(trigger.ca_obt_s)
             return None
-        if not isinstance(trigger, (TargetDetected, WheelSaturation, Fault, Tick)):
+        if not isinstance(trigger, (TargetDetected, FalseLock, WheelSaturation, Fault, Tick)):
             raise InternalFault(f"mode manager: unknown trigger {trigger!r}")
         state = _State(obt_s, self.cfg, self.ca_obt_s, self.last_seen_obt_s)
         event = None
@@ -248,6 +261,8 @@ def _detail(trigger: Trigger, cause: Cause, s: _State) -> str:
         return trigger.what
     if isinstance(trigger, WheelSaturation):
         return "" if trigger.wheel is None else f"wheel {trigger.wheel}"
+    if isinstance(trigger, FalseLock):
+        return f"frame {trigger.frame_id} refused"
     if cause == Cause.TARGET_LOST:
         return f"target unseen since OBT {s.last_seen_obt_s:.3f} s"
     if cause in (Cause.AUTONOMY_TIME, Cause.FLYBY_OVER):

@@ -31,6 +31,17 @@ def _theta(times_s: NDArray, ca_time_s: NDArray | float, ca_distance_m: NDArray 
     return np.arctan2(ca_distance_m, -speed_m_s * (times_s - ca_time_s))
 
 
+def predicted_theta(ca_time_obt_s: float, ca_distance_km: float, cov: NDArray[np.float64], speed_m_s: float,
+                    obt_s: float) -> tuple[float, float]:
+    """(in-plane LOS angle rad, its one-sigma rad) at ``obt_s`` of the C/A estimate (time OBT s, distance km) with
+    covariance ``cov`` (s^2, s km, km^2): the covariance carried through d theta / d (C/A time, C/A distance)."""
+    d_m = ca_distance_km * 1e3
+    tau = obt_s - ca_time_obt_s
+    r2 = d_m * d_m + (speed_m_s * tau) ** 2
+    jac = np.array([-speed_m_s * d_m / r2, -speed_m_s * tau / r2 * 1e3])  # per s of C/A time, per km of distance
+    return float(np.arctan2(d_m, -speed_m_s * tau)), float(np.sqrt(max(float(jac @ cov @ jac), 0.0)))
+
+
 class TrajectoryRecognizer:
     """Grid and continuous recognition of the C/A time (OBT) and distance. Pure: time and inputs are arguments."""
 
@@ -149,6 +160,16 @@ class TrajectoryRecognizer:
                 "ca_distance_sigma_km": float(np.sqrt(max(cov[1, 1], 0.0))),
             }
         )
+
+    def predicted_theta(self, obt_s: float) -> tuple[float, float]:
+        """(in-plane LOS angle rad, its one-sigma rad) the continuous estimate predicts at ``obt_s``."""
+        t, d_km, cov = self.continuous()
+        return predicted_theta(t, d_km, cov, self.nominal.speed_m_s, obt_s)
+
+    @property
+    def last_measurement_obt_s(self) -> float | None:
+        """The time stamp of the measurement added last, OBT s (None before any)."""
+        return self._meas_t[-1] if self._meas_t else None
 
     def _solve(self) -> tuple[float, float, NDArray[np.float64]]:
         nom = self.nominal

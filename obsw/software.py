@@ -17,7 +17,7 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
 5. IMAGING: a frame whose readout and FPGA stages are over goes through the software stage of the imaging chain
    (a saturated or blank frame is discarded, ``obsw.frame_quality``); Dimorphos's line of sight, turned inertial with
    the attitude at its exposure and accepted by the false-lock gate (``obsw.lock_gate``), is a measurement from the
-   task's finish on;
+   task's finish on; a line of sight refused in NOMINAL_TRACKING hands over to AUTONOMOUS_TRACKING;
 6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time;
 7. MODES: the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
    on-board estimate, end of flyby);
@@ -63,8 +63,9 @@ from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
-from obsw.lock_gate import LockGate
-from obsw.modes import CaEstimate, Cause, Fault, ModeEvent, ModeManager, TargetDetected, Tick, WheelSaturation
+from obsw.lock_gate import Estimate, LockGate, Prediction
+from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeManager, TargetDetected, Tick,
+                        WheelSaturation)
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.monitoring import ParameterMonitor
 from obsw.recognition import TrajectoryRecognizer
@@ -848,7 +849,7 @@ class FlightSoftware:
         d_col, d_row = det.dimorphos_offset_px
         los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
         los_i = Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
-        gate = self.lock_gate.check(self._recognised_trajectory(), obt, los_i)
+        gate = self.lock_gate.check(self._recognised_trajectory(), obt, los_i, self._prediction(obt))
         if not gate.accepted:
             if self.lock_gate.run == 1:
                 self._event(pus.FalseLockEvent(frame_id=meta.frame_id, offset_rad=gate.innovation_rad,
@@ -857,6 +858,7 @@ class FlightSoftware:
                             f"deg from the recognised trajectory's prediction (gate {np.degrees(gate.gate_rad):.3f} "
                             "deg): its line of sight is refused")
             self.detections = None  # the chain identifies afresh rather than by continuity with the false target
+            self._mode_event(self.modes.handle(FalseLock(meta.frame_id), act.now_s), act.now_s)
         else:
             self._last_seen_obt = obt
             act.emit(EventKind.MEASUREMENT, Measurement(obt, los_i, meta.frame_id))
@@ -864,6 +866,22 @@ class FlightSoftware:
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
         return det
+
+    def _prediction(self, obt: float) -> Prediction | None:
+        """What the reference C/A estimate (``obsw.lock_gate.ReferenceEstimates``) predicts of Dimorphos's line of
+        sight at ``obt``, once the recognition is trusted."""
+        rec = self.recognizer
+        newest = None if rec is None else rec.last_measurement_obt_s
+        if rec is None or newest is None or rec.measurement_count < self.cfg.min_recognition_measurements:
+            return None
+        t, d_km, cov = rec.continuous()
+        self.lock_gate.references.add(Estimate(newest, t, d_km, cov))
+        reference = self.lock_gate.reference(obt)
+        assert reference is not None  # one was just added
+        targets = self.cfg.targets
+        return reference.prediction(obt, rec.nominal.speed_m_s,
+                                    math.hypot(self.cfg.recognition.angle_noise_rad, self._attitude_sigma_rad),
+                                    targets.max_axis_ratio * targets.dimorphos_diameter_m / 2)
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""

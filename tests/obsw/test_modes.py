@@ -16,6 +16,7 @@ from obsw.executive import Activation, EventKind, Executive, TaskSpec
 from obsw.modes import (
     CaEstimate,
     Cause,
+    FalseLock,
     Fault,
     Mode,
     ModeManager,
@@ -35,7 +36,7 @@ COMMANDS = {SAFE: {SB}, SB: {SAFE, AQ}, AQ: {SAFE, SB}, NT: {SAFE, SB, AQ, AT}, 
 GRAPH = {(a, b) for a, bs in COMMANDS.items() for b in bs} | {
     (SB, SAFE), (AQ, SAFE), (NT, SAFE), (AT, SAFE),  # fault / wheel saturation
     (AQ, NT),  # target acquired
-    (NT, AT),  # C/A-30 s by the on-board estimate
+    (NT, AT),  # C/A-30 s by the on-board estimate, or a false lock
     (NT, AQ),  # target lost
     (AQ, SB), (NT, SB), (AT, SB),  # flyby over
 }  # fmt: skip
@@ -85,6 +86,19 @@ def test_target_lost_only_in_nominal_tracking() -> None:
     assert m.mode == Mode.AUTONOMOUS_TRACKING
 
 
+def test_a_false_lock_hands_nominal_tracking_over_to_autonomous_tracking_only() -> None:
+    """A false lock in NOMINAL_TRACKING gives AUTONOMOUS_TRACKING (cause FALSE_LOCK, naming the frame) at once; in
+    any other mode it changes nothing."""
+    m = ModeManager(ModesConfig(), initial=Mode.NOMINAL_TRACKING)
+    e = m.handle(FalseLock(128), 5.0)
+    assert e is not None and (e.from_mode, e.to_mode, e.cause, e.obt_s) == (
+        Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING, Cause.FALSE_LOCK, 5.0)
+    assert e.detail == "frame 128 refused"
+    for start in (Mode.SAFE, Mode.STANDBY, Mode.ACQUISITION, Mode.AUTONOMOUS_TRACKING):
+        m = ModeManager(ModesConfig(), initial=start)
+        assert m.handle(FalseLock(1), 5.0) is None and m.mode == start
+
+
 def test_faults_go_safe_and_only_a_command_leaves_safe() -> None:
     """Fault or saturation from any non-SAFE mode gives SAFE; in SAFE events do nothing; only STANDBY is commandable."""
     for start in (Mode.STANDBY, Mode.ACQUISITION, Mode.NOMINAL_TRACKING, Mode.AUTONOMOUS_TRACKING):
@@ -132,6 +146,8 @@ def reference_next(mode: str, trigger: object, obt: float, ca: float | None, see
         return SAFE
     if isinstance(trigger, TargetDetected):
         return NT if mode == AQ else mode
+    if isinstance(trigger, FalseLock):
+        return AT if mode == NT else mode
     if isinstance(trigger, Tick):
         if mode in (AQ, NT, AT) and ca is not None and obt >= ca + cfg.standby_after_ca_s:
             return SB
@@ -160,6 +176,8 @@ def draw_trigger(kind: str, mode: str, data: st.DataObject) -> object:
         return SetMode(data.draw(st.sampled_from(list(Mode))))
     if kind == "detection":
         return TargetDetected()
+    if kind == "false_lock":
+        return FalseLock(data.draw(st.integers(0, 1000)))
     return data.draw(st.sampled_from([Fault("injected"), WheelSaturation(0)]))
 
 
@@ -201,7 +219,7 @@ class ModesVersusReference(RuleBasedStateMachine):
             + ["forward_command"] * 3
             + ["detection"] * 3
             + ["ca"] * 2
-            + ["legal_command", "any_command", "failure"]
+            + ["legal_command", "any_command", "failure", "false_lock"]
         ),
         data=st.data(),
     )

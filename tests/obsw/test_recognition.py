@@ -251,3 +251,22 @@ def test_bad_inputs_are_rejected_with_the_field_named() -> None:
     with pytest.raises(ValueError, match="los_inertial"):
         rec.add_measurement(900.0, [0.0, 0.0, 2.0])
     assert rec.measurement_count == 0
+
+
+def test_the_predicted_angle_and_its_sigma_follow_the_estimate_and_its_covariance() -> None:
+    """The predicted in-plane angle is the continuous trajectory's; its sigma is the covariance carried through the
+    angle's derivatives, here taken by central differences of NominalTrajectory.theta_rad."""
+    truth = NOMINAL.with_ca(1004.0, 52.0)
+    rec = _fed(truth, seed=5)
+    t_ca, d_km, cov = rec.continuous()
+    est = NOMINAL.with_ca(t_ca, d_km)
+    for t in (800.0, 950.0, 995.0, 1010.0):
+        theta, sigma = rec.predicted_theta(t)
+        assert theta == pytest.approx(float(est.theta_rad(t)), abs=1e-12)
+        h = 1e-4  # s and km
+
+        def theta(dt: float, dd: float) -> float:
+            return float(NOMINAL.with_ca(t_ca + dt, d_km + dd).theta_rad(t))  # noqa: B023
+
+        jac = np.array([(theta(h, 0.0) - theta(-h, 0.0)) / (2 * h), (theta(0.0, h) - theta(0.0, -h)) / (2 * h)])
+        assert sigma == pytest.approx(float(np.sqrt(jac @ cov @ jac)), rel=1e-5)
