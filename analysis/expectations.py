@@ -93,8 +93,9 @@ def judge(data: RunData, figures: RunFigures, error: str | None, nonfinite: str 
     events = [] if tm is None else tm.events
     start = v.fault_start_s if v.fault_start_s is not None else sc.universe.start_s
     for want in expect.events:
-        found = [(t, e) for t, e in events if type(e).__name__ == want.event
-                 and (want.severity is None or e.severity.name == want.severity)]
+        # earliest first by on-board time: the archive's order is the order of receipt, not of detection
+        found = sorted(((t, e) for t, e in events if type(e).__name__ == want.event
+                        and (want.severity is None or e.severity.name == want.severity)), key=lambda te: te[0])
         what = want.event + (f" ({want.severity})" if want.severity else "")
         latency = None if not found or truth is None else _obt_to_true_s(data, found[0][0]) - start
         v.latencies[want.event] = latency

@@ -177,11 +177,23 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         for line in problems:
             print(f"  {line}", file=sys.stderr)
         return EXIT_CONFIG
-    args.out.mkdir(parents=True, exist_ok=True)
     jobs = []
     for p in paths:
         sc, _ = load_run_inputs(p)
         jobs.append(Job(p, args.out / sc.name))
+    # a run folder's archive and truth are appended to: a second run into it would mix two runs' telemetry
+    earlier = [j.run_dir for j in jobs if j.run_dir.is_dir() and any(j.run_dir.iterdir())]
+    if earlier and not args.replace:
+        print(f"flyby campaign: {len(earlier)} run folder(s) of an earlier campaign in {args.out}, nothing run:",
+              file=sys.stderr)
+        for d in earlier:
+            print(f"  {d}: holds a run already; give a new --out, or --replace to delete it and run again",
+                  file=sys.stderr)
+        return EXIT_CONFIG
+    for d in earlier:
+        shutil.rmtree(d)
+        print(f"flyby campaign: --replace: deleted the earlier run in {d}", flush=True)
+    args.out.mkdir(parents=True, exist_ok=True)
     workers = args.jobs or max(1, os.cpu_count() or 1)
     print(f"flyby campaign: {len(jobs)} scenario(s) of {args.folder}, {workers} at a time, into {args.out}",
           flush=True)
@@ -209,6 +221,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     c.add_argument("--out", type=Path, required=True, help="output folder: one run folder per scenario and the "
                    "campaign's pages")
     c.add_argument("--jobs", type=int, default=None, help="scenarios run at once (default: the local cores)")
+    c.add_argument("--replace", action="store_true",
+                   help="delete the run folders an earlier campaign left in --out and run them again (without it, "
+                   "such folders are refused: a run folder is appended to, never mixed)")
     c.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="an existing Dask scheduler (tcp://HOST:8786) whose workers see --out; default: a local "
                    "cluster of --jobs processes")

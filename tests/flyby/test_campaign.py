@@ -142,3 +142,24 @@ def test_a_requirements_file_in_the_folder_is_not_taken_for_a_scenario(tmp_path:
     paths, reqs, problems = check_inputs(folder, find_requirements(folder))
     assert problems == [] and [p.name for p in paths] == ["clean.yaml"]
     assert reqs is not None and find_requirements(folder) == (folder / "requirements.yaml").resolve()
+
+
+def test_a_second_campaign_into_the_same_folder_is_refused_unless_replaced(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Run folders left by an earlier campaign are refused by name (exit 2, untouched); with --replace they are run
+    again from scratch, so the archive holds one run's packets, not two."""
+    folder = _campaign(tmp_path, {"clean": CLEAN})
+    out = tmp_path / "out"
+    assert main(["campaign", str(folder), "--out", str(out), "--jobs", "1"]) == 0
+    first = load_run(out / "clean")
+    assert first.telemetry is not None
+    packets = first.telemetry.packets
+    before = (out / "clean" / "tm.bin").read_bytes()
+    capsys.readouterr()
+    assert main(["campaign", str(folder), "--out", str(out), "--jobs", "1"]) == EXIT_CONFIG
+    assert f"{out / 'clean'}: holds a run already" in capsys.readouterr().err
+    assert (out / "clean" / "tm.bin").read_bytes() == before
+    assert main(["campaign", str(folder), "--out", str(out), "--jobs", "1", "--replace"]) == 0
+    again = load_run(out / "clean")
+    assert again.telemetry is not None and again.telemetry.packets == packets
+    assert (out / "clean" / "tm.bin").read_bytes() == before  # deterministic: the same run, once
