@@ -3,7 +3,7 @@
 Run: .venv/bin/python bench/dryrun.py [--rounds N] [--jobs J] [--no-dry-run]
 Measured, each round in turn (so a slow spell of this shared machine hits them alike):
 - reference: one in-process run of the nominal flyby at centroid-level fidelity (what one dry-run case costs);
-- the dry run of configs/timelines/flyby-imaging.yaml on the nominal scenario (five cases, J at a time, default all);
+- the dry run of configs/timelines/flyby-imaging.yaml on the nominal scenario (five cases, J at a time, default one per core);
 - the same on ground-early-knowledge (the C/A-240 s rows refused: no imaging, mostly STANDBY);
 - the replay of a recorded nominal run (4200 periods, 463 frames) through the flight software, image level, its
   frames kept by reference (rendered again and checked) and kept raw (read from the record).
@@ -13,6 +13,7 @@ Medians over the rounds and their ratios to the reference are printed; also the 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import tempfile
@@ -37,7 +38,7 @@ def main() -> None:
     """Time each item ``--rounds`` times, interleaved; print medians and ratios to the reference."""
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--rounds", type=int, default=3)
-    p.add_argument("--jobs", type=int, default=None, help="cases at a time (default: all five, as flyby ground does)")
+    p.add_argument("--jobs", type=int, default=None, help="cases at a time (default: one per core, as flyby ground does)")
     p.add_argument("--no-dry-run", action="store_true", help="time the reference and the replays only")
     args = p.parse_args()
     nominal, timeline = load_run_inputs(SCENARIOS / "nominal.yaml")
@@ -53,7 +54,7 @@ def main() -> None:
             print(f"recorded nominal run (image level, frames {frames}) in {perf_counter() - t0:.1f} s: "
                   f"{STEP_RECORD} {record.stat().st_size / 1e6:.2f} MB")
         items = {"reference: one centroid-level in-process run": lambda: run_in_process(centroid, timeline)}
-        at_a_time = "all" if args.jobs is None else args.jobs
+        at_a_time = f"one per core ({os.cpu_count()})" if args.jobs is None else args.jobs
         if not args.no_dry_run:
             items[f"dry run, nominal (5 cases, {at_a_time} at a time)"] = lambda: dry_run(nominal, imaging,
                                                                                           jobs=args.jobs)

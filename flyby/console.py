@@ -245,8 +245,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     g.add_argument("--trajectory", type=Path, default=None, metavar="FILE",
                    help="dry run against this trajectory file (as --upload-trajectory) instead of ground's belief")
     g.add_argument("--jobs", type=int, default=None,
-                   help="dry-run cases run at a time, in separate processes (default: all five at once, the system "
-                   "sharing the cores among them)")
+                   help="dry-run cases run at a time, in separate processes (default: one per core, at most five)")
     g.add_argument("--fidelity", choices=["centroid", "image"], default="centroid",
                    help="dry run with the imaging chain's output modelled (centroid, fast) or frames rendered (image)")
     g.add_argument("--watch", action="store_true", help="print housekeeping, events and verifications as they arrive")

@@ -12,6 +12,7 @@ at upload, by the on-board schedule, or at execution), the mode path, and whethe
 from __future__ import annotations
 
 import math
+import os
 import re
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -268,12 +269,12 @@ def _rehearse(args: tuple[Scenario, Timeline, FlybyBelief, Case, float | None, s
 def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None, jobs: int | None = 1,
             corners: bool = True, upload_utc_s: float | None = None, fidelity: str = "centroid") -> list[CaseResult]:
     """Every case of the dry run (ground's belief first, then its corners unless ``corners`` is False), ``jobs``
-    cases at a time in separate processes (None: every case at once, the system sharing the cores among them: five
-    cases on two cores then take two and a half case-times, not three); ``upload_utc_s`` and ``fidelity`` as in
-    ``rehearsal_scenario``."""
+    cases at a time in separate processes (None: one per core, at most one per case; more than the cores cost more
+    processor time in switching than they gain in packing, measured on two cores); ``upload_utc_s`` and
+    ``fidelity`` as in ``rehearsal_scenario``."""
     belief = compose.ground_belief(sc) if belief is None else belief
     todo = [(sc, timeline, belief, c, upload_utc_s, fidelity) for c in (cases() if corners else cases()[:1])]
-    jobs = len(todo) if jobs is None else jobs
+    jobs = min(len(todo), os.cpu_count() or 1) if jobs is None else jobs
     if jobs <= 1:
         return [_rehearse(t) for t in todo]
     with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
