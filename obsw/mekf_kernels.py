@@ -6,7 +6,7 @@ The equations are ``obsw.attitude``'s (its module docstring): the discrete trans
 ``H = [I 0]`` in Joseph form, ``P = (I - K H) P (I - K H)^T + K R K^T``, which keeps ``P`` symmetric and positive
 for any gain. They were generic 6x6 matrix products through filterpy, a fifth of the flight software's time per
 period; here they are plain loops in double precision without fast-math (no reassociation), compiled once and
-cached next to this file.
+cached next to this file (``warm_up`` lets the OBSW node pay it before its first control period).
 """
 
 from __future__ import annotations
@@ -26,6 +26,21 @@ def _mul(a: np.ndarray, b: np.ndarray, transpose_b: bool) -> np.ndarray:
             for k in range(a.shape[1]):
                 acc += a[i, k] * (b[j, k] if transpose_b else b[k, j])
             out[i, j] = acc
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _inverse3(s: np.ndarray) -> np.ndarray:
+    """The inverse of a 3x3 matrix by its adjugate (S = P_tt + R is symmetric positive definite: never singular)."""
+    a, b, c = s[0, 0], s[0, 1], s[0, 2]
+    d, e, f = s[1, 0], s[1, 1], s[1, 2]
+    g, h, i = s[2, 0], s[2, 1], s[2, 2]
+    co_a, co_b, co_c = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * co_a + b * co_b + c * co_c
+    out = np.empty((3, 3))
+    out[0, 0], out[1, 0], out[2, 0] = co_a / det, co_b / det, co_c / det
+    out[0, 1], out[1, 1], out[2, 1] = (c * h - b * i) / det, (a * i - c * g) / det, (b * g - a * h) / det
+    out[0, 2], out[1, 2], out[2, 2] = (b * f - c * e) / det, (c * d - a * f) / det, (a * e - b * d) / det
     return out
 
 
@@ -67,7 +82,7 @@ def update(p: np.ndarray, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.
     """The Kalman update of a zero error state with covariance ``p`` on a measurement ``z`` of ``dtheta`` with
     noise covariance ``r`` (3x3): the state correction ``dx`` (6) and the updated covariance (Joseph form)."""
     s = p[:3, :3] + r
-    k = _mul(np.ascontiguousarray(p[:, :3]), np.linalg.inv(s), False)  # P H^T S^-1
+    k = _mul(np.ascontiguousarray(p[:, :3]), _inverse3(s), False)  # P H^T S^-1
     dx = np.zeros(6)
     for i in range(6):
         dx[i] = k[i, 0] * z[0] + k[i, 1] * z[1] + k[i, 2] * z[2]
@@ -75,3 +90,9 @@ def update(p: np.ndarray, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.
     i_kh[:, :3] -= k
     out = _mul(_mul(i_kh, p, False), i_kh, True) + _mul(_mul(k, r, False), k, True)
     return dx, out
+
+
+def warm_up() -> None:
+    """Compile the kernels now (or load them from the cache): seconds on the first run after an install."""
+    p = np.eye(6)
+    update(predict(p, np.zeros(3), 0.1, 1e-5, 1e-6), np.eye(3), np.zeros(3))

@@ -31,10 +31,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "07c334db3c31d07ef182af483609fd27a650645ebc3e6d263fc9204567dea6a1",
-    "replies": "a0fc6cae7205a2724696a393f918d131c41e312790fedb632e4935dccb7115f9",
+    "tm": "79b4cf1580f55830398424f3662b468d80319240ef11567e2465f9cfdc336b52",
+    "replies": "e2501716bdf2c929824a7093f85e6d7496ff89ade48a2190280d66164dc40623",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "85c29b756fdee3dd930febf8241cf3d4ff93dc150fb31761b61216672b688c9a",
+    "truth": "2bc7dc17d6ad14d28ecca53801b214c9f3bb2d9f98c9fa58c99fda8ffb88566f",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,
