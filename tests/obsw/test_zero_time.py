@@ -5,7 +5,8 @@ changes, with the in-process keys fixed by the seed; recorded again with the cam
 chain robust to it, and with the attitude estimator (a multiplicative EKF that filters the star tracker and removes
 the estimated gyro bias) and on-board FDIR, both changes of flight behaviour on purpose; recorded again when the MEKF's
 covariance steps were compiled and the universe's truth geometry vectorised, the same equations rounded in another
-order), for the same seed.
+order; recorded again when the control path (tracking loop, PD law, wheel split) was compiled, the same equations
+rounded in another order: torques within 3e-16 N m of the previous record), for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -31,10 +32,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "07c334db3c31d07ef182af483609fd27a650645ebc3e6d263fc9204567dea6a1",
-    "replies": "a0fc6cae7205a2724696a393f918d131c41e312790fedb632e4935dccb7115f9",
+    "tm": "e3a7f27e18181a92bfc707b279d92e667483b3747ed97344e6afd14f45bfaa32",
+    "replies": "a900aa5c70e49a9a1fd5ae545b97eed1002726ddfd64e53bb4255a9d9209515d",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "85c29b756fdee3dd930febf8241cf3d4ff93dc150fb31761b61216672b688c9a",
+    "truth": "841b0e64b251b821dc87e820b178cef8f868109b71235269f99f86d9dfd40577",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,
