@@ -203,8 +203,9 @@ class TrackingLoop:
     def _propagate(self, dt_s: float) -> None:
         """Advance (c, i) exactly over dt_s: with e = y - c and a linear input, (e, i - y') obeys z' = M z."""
         assert self._t is not None
-        self._c, self._i = kernels.propagate(self._c, self._i, self._t, float(dt_s), *self._line_args(),
-                                             self.cfg.extrapolation_limit_s, self._kp, self._ki)
+        state = kernels.propagate(self._c, self._i, self._t, float(dt_s), *self._line_args(),
+                                  self.cfg.extrapolation_limit_s, self._kp, self._ki)
+        self._c, self._i = state[:3], state[3:]
         self._t += dt_s
 
     def _correction_rate(self) -> NDArray[np.float64]:
@@ -302,12 +303,12 @@ class TrackingLoop:
     def _reference(self, trajectory: NominalTrajectory) -> Reference:
         """R_des = R(c) R_pred; omega and alpha from theta', theta'' about the normal plus the correction's motion."""
         assert self._obt is not None and self._t is not None
-        q_des, valid, omega_body, alpha_body, los_commanded, r_des = kernels.reference(
-            self._c, self._i, self._kp, self._ki, self._t, *self._line_args(), self.cfg.extrapolation_limit_s,
-            self._geometry_array(trajectory), self._obt, self._triad)
+        out, valid = kernels.reference(self._c, self._i, self._kp, self._ki, self._t, *self._line_args(),
+                                       self.cfg.extrapolation_limit_s, self._geometry_array(trajectory), self._obt,
+                                       self._triad)
         return Reference(
-            q_des=q_des if valid else Rotation.from_matrix(r_des).as_quat(),
-            omega_des_body=omega_body,
-            alpha_des_body=alpha_body,
-            los_commanded_inertial=los_commanded,
+            q_des=out[:4] if valid else Rotation.from_matrix(out[13:].reshape(3, 3)).as_quat(),
+            omega_des_body=out[4:7],
+            alpha_des_body=out[7:10],
+            los_commanded_inertial=out[10:13],
         )

@@ -51,11 +51,15 @@ def input_at(t_k: float, y_k: np.ndarray, slope: np.ndarray, limit_s: float,
 
 @njit(cache=True, nogil=True)
 def propagate(c: np.ndarray, i: np.ndarray, t0: float, dt_s: float, has_line: bool, t_k: float, y_k: np.ndarray,
-              slope: np.ndarray, limit_s: float, kp: float, ki: float) -> tuple[np.ndarray, np.ndarray]:
-    """The correction ``c`` and integral ``i`` advanced exactly from loop time ``t0`` over ``dt_s``: with ``e = y - c``
-    and an input linear on each piece (split where it stops sloping), ``(e, i - y')`` obeys ``z' = M z``."""
+              slope: np.ndarray, limit_s: float, kp: float, ki: float) -> np.ndarray:
+    """``[c, i]``: the correction ``c`` and integral ``i`` advanced exactly from loop time ``t0`` over ``dt_s``: with
+    ``e = y - c`` and an input linear on each piece (split where it stops sloping), ``(e, i - y')`` obeys
+    ``z' = M z``. One array out, since each array returned costs more than the arithmetic."""
+    out = np.empty(6)
     if not has_line:
-        return c + i * dt_s, i.copy()  # no measurement yet: nothing to correct against
+        out[:3] = c + i * dt_s  # no measurement yet: nothing to correct against
+        out[3:] = i
+        return out
     t1 = t0 + dt_s
     knot = t_k + limit_s
     starts = np.array([t0, knot])
@@ -72,7 +76,9 @@ def propagate(c: np.ndarray, i: np.ndarray, t0: float, dt_s: float, has_line: bo
             z0, z1 = y_a[j] - c_out[j], i_out[j] - rate[j]
             c_out[j] = y_a[j] + rate[j] * (b - a) - (m00 * z0 + m01 * z1)
             i_out[j] = (m10 * z0 + m11 * z1) + rate[j]
-    return c_out, i_out
+    out[:3] = c_out
+    out[3:] = i_out
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -224,10 +230,11 @@ def predicted_matrix(geometry: np.ndarray, los: np.ndarray, body_triad: np.ndarr
 @njit(cache=True, nogil=True)
 def reference(c: np.ndarray, i: np.ndarray, kp: float, ki: float, t: float, has_line: bool, t_k: float,
               y_k: np.ndarray, slope: np.ndarray, limit_s: float, geometry: np.ndarray, obt_s: float,
-              body_triad: np.ndarray) -> tuple[np.ndarray, bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+              body_triad: np.ndarray) -> tuple[np.ndarray, bool]:
     """``R_des = R(c) R_pred`` at ``obt_s`` with the body rate and acceleration from ``theta'``, ``theta''`` about
-    the plane normal plus the correction's motion: ``(q_des, q_des valid, omega_des_body, alpha_des_body, commanded
-    LOS, R_des)`` (``q_des`` is not valid when ``R_des`` is one SciPy would first orthogonalise)."""
+    the plane normal plus the correction's motion: ``[q_des (4), omega_des_body (3), alpha_des_body (3), commanded
+    LOS (3), R_des (9, by rows)]`` in one array (each array returned costs more than the arithmetic), and whether
+    ``q_des`` is valid (not when ``R_des`` is one SciPy would first orthogonalise)."""
     r_c = rotation_matrix(c)
     los = los_inertial(geometry, obt_s)
     r_des = _matmul(r_c, predicted_matrix(geometry, los, body_triad))
@@ -248,5 +255,10 @@ def reference(c: np.ndarray, i: np.ndarray, kp: float, ki: float, t: float, has_
     # d/dt omega_in, neglecting J' c' (second order in the small correction)
     alpha_in = _matvec(jac, c_ddot, False) + rate * _cross(omega_c, n_c) + accel * n_c
     q, valid = quaternion_of_matrix(r_des)
-    return (q, valid, _matvec(r_des, omega_in, True), _matvec(r_des, alpha_in, True), _matvec(r_c, los, False),
-            r_des)
+    out = np.empty(22)
+    out[:4] = q
+    out[4:7] = _matvec(r_des, omega_in, True)
+    out[7:10] = _matvec(r_des, alpha_in, True)
+    out[10:13] = _matvec(r_c, los, False)
+    out[13:] = r_des.ravel()
+    return out, valid
