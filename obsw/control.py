@@ -48,6 +48,13 @@ def attitude_error_rad(q: ArrayLike, q_des: ArrayLike) -> NDArray[np.float64]:
     return kernels.rotvec(kernels.error_quaternion(_unit_quaternion("q", q), _unit_quaternion("q_des", q_des)))
 
 
+def boresight_error_rad(q: ArrayLike, boresight_body: ArrayLike, los_inertial: ArrayLike) -> float:
+    """Angle between the body vector ``boresight_body`` turned to inertial by the attitude ``q`` (body->inertial,
+    scalar-last) and the unit vector ``los_inertial``, rad."""
+    return kernels.boresight_error_rad(_unit_quaternion("q", q), _vector("boresight_body", boresight_body, 3),
+                                       _vector("los_inertial", los_inertial, 3))
+
+
 def pd_torque_nm(
     q: ArrayLike,
     omega_rad_s: ArrayLike,

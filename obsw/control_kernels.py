@@ -140,6 +140,18 @@ def split_pass(share: np.ndarray, usable: np.ndarray, momentum: np.ndarray,
 
 
 @njit(cache=True, nogil=True)
+def boresight_error_rad(q: np.ndarray, boresight_body: np.ndarray, los_inertial: np.ndarray) -> float:
+    """Angle between ``boresight_body`` turned to inertial by the attitude ``q`` (body->inertial, scalar-last, any
+    norm) and the unit ``los_inertial``, rad: ``v + 2 w (u x v) + 2 u x (u x v)`` of the unit quaternion."""
+    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    u = q[:3] / norm
+    t = 2.0 * _cross(u, boresight_body)
+    turned = boresight_body + (q[3] / norm) * t + _cross(u, t)
+    dot = turned[0] * los_inertial[0] + turned[1] * los_inertial[1] + turned[2] * los_inertial[2]
+    return math.acos(min(max(dot, -1.0), 1.0))
+
+
+@njit(cache=True, nogil=True)
 def all_finite(a: np.ndarray) -> bool:
     """Whether every element of ``a`` is finite."""
     return _finite(a)

@@ -57,7 +57,7 @@ from contracts.mode import Mode
 from contracts.task import Task
 from obsw.attitude import AttitudeEstimator
 from obsw.config import ObswConfig
-from obsw.control import pd_torque_nm, wheel_torques_nm
+from obsw.control import boresight_error_rad, pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
 from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
@@ -997,8 +997,8 @@ class FlightSoftware:
         self.last_reference = ref
         if seen is not None:  # the boresight at the exposure against the LOS measured then
             q_exposure = self._attitude_at(seen.exposure_obt_s)
-            boresight = Rotation.from_quat(q_exposure).apply(np.asarray(self.camera.boresight_body, dtype=float))
-            self.pointing_error_est_rad = float(np.arccos(np.clip(boresight @ seen.los_inertial, -1, 1)))
+            self.pointing_error_est_rad = boresight_error_rad(q_exposure, self.camera.boresight_body,
+                                                              seen.los_inertial)
         body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)
         tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms,
                                self._in_use())

@@ -218,8 +218,8 @@ class TrackingLoop:
         """Keep the commanded attitude and rate continuous when the trajectory model is replaced."""
         assert self._obt is not None and self._t is not None
         rate_before = self._correction_rate()
-        shift = Rotation.from_rotvec(offset_rotvec(new.los_inertial(self._obt), old.los_inertial(self._obt)))
-        self._c = (Rotation.from_rotvec(self._c) * shift).as_rotvec()
+        shift = offset_rotvec(new.los_inertial(self._obt), old.los_inertial(self._obt))
+        self._c = kernels.compose_rotvec(self._c, shift)
         self._line = self._input_line(new)
         # commanded LOS rate ~ theta' n + c': move the difference of the trajectories' rates into c'
         wanted_rate = rate_before + (old.los_rate_rad_s(self._obt) - new.los_rate_rad_s(self._obt)) * new.plane_normal

@@ -199,6 +199,37 @@ def quaternion_of_matrix(m: np.ndarray) -> tuple[np.ndarray, bool]:
 
 
 @njit(cache=True, nogil=True)
+def _quaternion_of_rotvec(v: np.ndarray) -> np.ndarray:
+    """Scalar-last unit quaternion of a rotation vector (SciPy's ``from_rotvec``: a series below 1e-3 rad)."""
+    angle = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    if angle <= 1e-3:
+        angle2 = angle * angle
+        scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
+    else:
+        scale = math.sin(angle / 2) / angle
+    return np.array([scale * v[0], scale * v[1], scale * v[2], math.cos(angle / 2)])
+
+
+@njit(cache=True, nogil=True)
+def compose_rotvec(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rotation vector of ``R(a) R(b)`` (rad, angle <= pi), through the quaternions as SciPy's ``Rotation`` does."""
+    p, q = _quaternion_of_rotvec(a), _quaternion_of_rotvec(b)
+    x = p[3] * q[0] + p[0] * q[3] + p[1] * q[2] - p[2] * q[1]
+    y = p[3] * q[1] - p[0] * q[2] + p[1] * q[3] + p[2] * q[0]
+    z = p[3] * q[2] + p[0] * q[1] - p[1] * q[0] + p[2] * q[3]
+    w = p[3] * q[3] - p[0] * q[0] - p[1] * q[1] - p[2] * q[2]
+    if w < 0:
+        x, y, z, w = -x, -y, -z, -w
+    angle = 2 * math.atan2(math.sqrt(x * x + y * y + z * z), w)
+    if angle <= 1e-3:
+        angle2 = angle * angle
+        scale = 2 + angle2 / 12 + 7 * angle2 * angle2 / 2880
+    else:
+        scale = angle / math.sin(angle / 2)
+    return np.array([scale * x, scale * y, scale * z])
+
+
+@njit(cache=True, nogil=True)
 def los_inertial(geometry: np.ndarray, obt_s: float) -> np.ndarray:
     """Unit line of sight spacecraft -> asteroid of the straight-line flyby ``geometry`` at ``obt_s``."""
     d, vt = geometry[1], geometry[2] * (obt_s - geometry[0])

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from obsw import control_kernels as k
 from obsw.config import ControlConfig
-from obsw.control import pd_torque_nm, wheel_torques_nm
+from obsw.control import boresight_error_rad, pd_torque_nm, wheel_torques_nm
 
 INERTIA = np.array([[0.152, 0.002, -0.001], [0.002, 0.117, 0.003], [-0.001, 0.003, 0.058]])
 vectors = st.lists(st.floats(-0.2, 0.2), min_size=3, max_size=3).map(np.array)
@@ -116,3 +116,17 @@ def test_non_finite_and_zero_inputs_are_refused_with_the_field_named() -> None:
         wheel_torques_nm(zero, np.eye(3), zero, 0.007, np.nan)
     with pytest.raises(ValueError, match="in_use must have 3 values"):
         wheel_torques_nm(zero, np.eye(3), zero, 0.007, 0.1, in_use=[True, False])
+
+
+@settings(max_examples=300, deadline=None)
+@given(seed=seeds, scale=st.floats(0.5, 2.0))
+def test_boresight_error_is_the_angle_to_scipys_turned_boresight(seed: int, scale: float) -> None:
+    """The boresight error is the angle between SciPy's rotation of the body boresight by q and the LOS."""
+    rng = np.random.default_rng(seed)
+    q = Rotation.random(random_state=seed).as_quat()
+    boresight, los = rng.standard_normal(3), rng.standard_normal(3)
+    boresight, los = boresight / np.linalg.norm(boresight), los / np.linalg.norm(los)
+    turned = Rotation.from_quat(q).apply(boresight)
+    expected = np.arctan2(np.linalg.norm(np.cross(turned, los)), turned @ los)  # well-conditioned at 0 and pi
+    assert boresight_error_rad(q * scale, boresight, los) == pytest.approx(expected, abs=1e-7)
+    assert boresight_error_rad(q, boresight, turned) == pytest.approx(0.0, abs=3e-8)

@@ -126,3 +126,15 @@ def test_quaternion_of_matrix_is_scipys_to_the_last_bit(seed: int) -> None:
     q, valid = k.quaternion_of_matrix(m)
     assert valid and q.tolist() == Rotation.from_matrix(m).as_quat().tolist()
     assert not k.quaternion_of_matrix(m * (1.0 + 1e-9))[1]
+
+
+@settings(max_examples=300, deadline=None)
+@given(first=vectors, first_angle=st.one_of(st.floats(0.0, 1.5), st.floats(0.0, 1e-3)), second=vectors,
+       second_angle=st.one_of(st.floats(0.0, 1.5), st.floats(0.0, 1e-3)))
+def test_composed_rotation_vector_is_scipys(first: np.ndarray, first_angle: float, second: np.ndarray,
+                                            second_angle: float) -> None:
+    """The rotation vector of R(a) R(b) is SciPy's (from_rotvec(a) * from_rotvec(b)).as_rotvec(), small angles
+    (SciPy's series) included."""
+    a, b = _rotvec(first, first_angle), _rotvec(second, second_angle)
+    expected = (Rotation.from_rotvec(a) * Rotation.from_rotvec(b)).as_rotvec()
+    np.testing.assert_allclose(k.compose_rotvec(a, b), expected, rtol=0, atol=1e-15)

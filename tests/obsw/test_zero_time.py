@@ -33,7 +33,7 @@ TIMELINE = {
 }
 RECORDED = {
     "tm": "e3a7f27e18181a92bfc707b279d92e667483b3747ed97344e6afd14f45bfaa32",
-    "replies": "a900aa5c70e49a9a1fd5ae545b97eed1002726ddfd64e53bb4255a9d9209515d",
+    "replies": "8a8b1a7f3b0bdc4bcae57a1fb6221a4b85e3e71acce7d6fcd8302801f9969ee7",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
     "truth": "841b0e64b251b821dc87e820b178cef8f868109b71235269f99f86d9dfd40577",
     "n_tm": 122,
