@@ -9,6 +9,7 @@ receives the opposite, ``body torque = -A tau_wheel`` with ``A`` the 3xN matrix 
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Protocol
 
 import numpy as np
@@ -166,3 +167,12 @@ def _split(axes: NDArray[np.float64], usable: NDArray[np.bool_]) -> NDArray[np.f
         _SPLITS[key] = split
     return split
 
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the control kernels now, as a run calls them."""
+    unit, zero = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)
+    ref = SimpleNamespace(q_des=unit, omega_des_body=zero, alpha_des_body=zero)
+    torque = pd_torque_nm(unit, zero, ref, np.eye(3), ControlConfig(), zero)
+    wheel_torques_nm(torque, np.eye(3), zero, 1.0, 1.0, np.ones(3, dtype=bool))
+    boresight_error_rad(unit, (0.0, 0.0, 1.0), np.array([0.0, 0.0, 1.0]))

@@ -19,6 +19,7 @@ from contracts.errors import NodeFailure
 from contracts.messages import StepReply, StepRequest
 from contracts.runtime import Attachment
 from contracts.steplog import FrameKeeping, StepLogWriter
+from obsw import control, tracking
 from obsw.software import FlightSoftware
 
 log = logging.getLogger("obsw")
@@ -96,6 +97,11 @@ def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: st
         writer = StepLogWriter(record, {**(record_header or {}), "obsw": fsw.cfg.model_dump(mode="json")},
                                frames=record_frames)
         fsw.security.keep_verdicts = True
+    wall = WallClock()
+    t0 = wall.now()
+    tracking.warm_up()  # compiled code: seconds on the first run after an install, before the first step is due
+    control.warm_up()
+    log.info("control kernels ready in %.1f s", wall.now() - t0)
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "obsw", WallClock(), log)
         bus.subscribe(keys.step, StepRequest)

@@ -312,3 +312,16 @@ class TrackingLoop:
             alpha_des_body=out[7:10],
             los_commanded_inertial=out[10:13],
         )
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the loop's kernels now, as a run calls them: periods with and without a
+    measurement, a gated one and a change of trajectory."""
+    trajectory = NominalTrajectory(ca_time_obt_s=100.0, ca_distance_km=50.0, speed_km_s=7.0,
+                                   approach_direction=(1.0, 0.0, 0.0), ca_direction=(0.0, 1.0, 0.0))
+    loop = TrackingLoop(TrackingConfig())
+    loop.update(0.0, 0.1, trajectory, None)
+    loop.update(0.1, 0.1, trajectory, trajectory.los_inertial(0.1))
+    loop.update(0.2, 0.1, trajectory, trajectory.los_inertial(0.2), measured_obt_s=0.15, gate_rad=0.1)
+    loop.update(0.3, 0.1, trajectory.with_ca(101.0, 50.0), None, extrapolate=False)
+    predicted_attitude(trajectory, 0.3, loop.cfg)

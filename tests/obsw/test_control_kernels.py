@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from obsw import control_kernels as k
 from obsw.config import ControlConfig
-from obsw.control import boresight_error_rad, pd_torque_nm, wheel_torques_nm
+from obsw.control import boresight_error_rad, pd_torque_nm, warm_up, wheel_torques_nm
 
 INERTIA = np.array([[0.152, 0.002, -0.001], [0.002, 0.117, 0.003], [-0.001, 0.003, 0.058]])
 vectors = st.lists(st.floats(-0.2, 0.2), min_size=3, max_size=3).map(np.array)
@@ -129,4 +129,18 @@ def test_boresight_error_is_the_angle_to_scipys_turned_boresight(seed: int, scal
     turned = Rotation.from_quat(q).apply(boresight)
     expected = np.arctan2(np.linalg.norm(np.cross(turned, los)), turned @ los)  # well-conditioned at 0 and pi
     assert boresight_error_rad(q * scale, boresight, los) == pytest.approx(expected, abs=1e-7)
-    assert boresight_error_rad(q, boresight, turned) == pytest.approx(0.0, abs=3e-8)
+    # acos of a dot product a few ulp below 1 (as the flight software takes it): sqrt(2 * 4 ulp) = 4.2e-8 rad
+    assert boresight_error_rad(q, boresight, turned) == pytest.approx(0.0, abs=1e-7)
+
+
+def test_warm_up_compiles_every_kernel_a_period_calls() -> None:
+    """After warm_up, the PD law, the wheel split and the boresight error of a period compile nothing more."""
+    warm_up()
+    before = {name: len(f.signatures) for name, f in vars(k).items() if hasattr(f, "signatures")}
+    assert all(before[name] >= 1 for name in ("pd_torque", "split_pass", "all_finite", "boresight_error_rad"))
+    q = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_quat()
+    torque = pd_torque_nm(q, np.array([0.01, 0.0, -0.02]), _Ref(q, np.zeros(3), np.ones(3) * 1e-3), INERTIA,
+                          ControlConfig(), np.array([0.01, 0.02, 0.0]))
+    wheel_torques_nm(torque, np.eye(3), np.array([0.1, 0.0, -0.1]), 0.007, 0.1, np.array([True, True, False]))
+    boresight_error_rad(q, (0.0, 0.0, 1.0), np.array([0.0, 1.0, 0.0]))
+    assert {name: len(f.signatures) for name, f in vars(k).items() if hasattr(f, "signatures")} == before

@@ -9,6 +9,8 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from obsw import tracking_kernels as k
+from obsw.config import TrackingConfig
+from obsw.tracking import TrackingLoop, warm_up
 from obsw.trajectory import NominalTrajectory
 
 vectors = st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3).map(np.array)
@@ -138,3 +140,21 @@ def test_composed_rotation_vector_is_scipys(first: np.ndarray, first_angle: floa
     a, b = _rotvec(first, first_angle), _rotvec(second, second_angle)
     expected = (Rotation.from_rotvec(a) * Rotation.from_rotvec(b)).as_rotvec()
     np.testing.assert_allclose(k.compose_rotvec(a, b), expected, rtol=0, atol=1e-15)
+
+
+def _signatures() -> dict[str, int]:
+    return {name: len(f.signatures) for name, f in vars(k).items() if hasattr(f, "signatures")}
+
+
+def test_warm_up_compiles_every_kernel_a_period_calls() -> None:
+    """After warm_up, periods of a loop (measurements, a gated one, a change of trajectory) compile nothing more."""
+    warm_up()
+    before = _signatures()
+    assert all(before[name] >= 1 for name in ("propagate", "reference", "correction_rate", "compose_rotvec"))
+    loop = TrackingLoop(TrackingConfig())
+    for step in range(6):
+        obt = 200.0 + 0.1 * step
+        trajectory = TRAJ if step < 4 else TRAJ.with_ca(211.0, 54.0)
+        loop.update(obt, 0.1, trajectory, TRAJ.los_inertial(obt - 0.05), measured_obt_s=obt - 0.05,
+                    gate_rad=0.05 if step % 2 else None, extrapolate=step < 5)
+    assert _signatures() == before
