@@ -14,6 +14,8 @@ import math
 import numpy as np
 from numba import njit
 
+from obsw.vector3_kernels import cross, matvec
+
 
 @njit(cache=True, nogil=True)
 def error_quaternion(q: np.ndarray, q_des: np.ndarray) -> np.ndarray:
@@ -52,19 +54,6 @@ def _to_body(e: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _matvec(a: np.ndarray, v: np.ndarray) -> np.ndarray:
-    out = np.empty(3)
-    for r in range(3):
-        out[r] = a[r, 0] * v[0] + a[r, 1] * v[1] + a[r, 2] * v[2]
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@njit(cache=True, nogil=True)
 def _finite(a: np.ndarray) -> bool:
     for x in a.flat:
         if not math.isfinite(x):
@@ -100,16 +89,16 @@ def pd_torque(q: np.ndarray, omega: np.ndarray, q_des: np.ndarray, omega_des: np
     e_q = error_quaternion(q_unit, q_des_unit)  # body -> desired
     error = rotvec(e_q)
     to_body = _to_body(e_q)
-    omega_des_b = _matvec(to_body, omega_des)
+    omega_des_b = matvec(to_body, omega_des, False)
     rate_error = omega - omega_des_b
     torque = -kp * error - kd * rate_error
     if feedforward:
-        h_total = _matvec(inertia, omega)
+        h_total = matvec(inertia, omega, False)
         if with_wheels:
             h_total = h_total + wheel_momentum
         # d/dt of (C omega_des) in the body frame is C alpha_des - omega x C omega_des
-        torque = torque + _matvec(inertia, _matvec(to_body, alpha_des) - _cross(omega, omega_des_b)) \
-            + _cross(omega, h_total)
+        torque = torque + matvec(inertia, matvec(to_body, alpha_des, False) - cross(omega, omega_des_b), False) \
+            + cross(omega, h_total)
     return torque, True
 
 
@@ -145,8 +134,8 @@ def boresight_error_rad(q: np.ndarray, boresight_body: np.ndarray, los_inertial:
     norm) and the unit ``los_inertial``, rad: ``v + 2 w (u x v) + 2 u x (u x v)`` of the unit quaternion."""
     norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     u = q[:3] / norm
-    t = 2.0 * _cross(u, boresight_body)
-    turned = boresight_body + (q[3] / norm) * t + _cross(u, t)
+    t = 2.0 * cross(u, boresight_body)
+    turned = boresight_body + (q[3] / norm) * t + cross(u, t)
     dot = turned[0] * los_inertial[0] + turned[1] * los_inertial[1] + turned[2] * los_inertial[2]
     return math.acos(min(max(dot, -1.0), 1.0))
 

@@ -16,6 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+from obsw.vector3_kernels import cross, matmul, matvec
+
 
 @njit(cache=True, nogil=True)
 def transition(kp: float, ki: float, h_s: float) -> tuple[float, float, float, float]:
@@ -92,37 +94,10 @@ def correction_rate(c: np.ndarray, i: np.ndarray, kp: float, has_line: bool, t_k
 
 
 @njit(cache=True, nogil=True)
-def _matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a b`` of two 3x3 matrices, summed in index order."""
-    out = np.empty((3, 3))
-    for r in range(3):
-        for s in range(3):
-            out[r, s] = a[r, 0] * b[0, s] + a[r, 1] * b[1, s] + a[r, 2] * b[2, s]
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _matvec(a: np.ndarray, v: np.ndarray, transpose: bool) -> np.ndarray:
-    """``a v`` (or ``a^T v``) of a 3x3 matrix and a 3-vector."""
-    out = np.empty(3)
-    for r in range(3):
-        if transpose:
-            out[r] = a[0, r] * v[0] + a[1, r] * v[1] + a[2, r] * v[2]
-        else:
-            out[r] = a[r, 0] * v[0] + a[r, 1] * v[1] + a[r, 2] * v[2]
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-@njit(cache=True, nogil=True)
 def _skew_terms(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``[v x]`` and ``[v x]^2``."""
     k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return k, _matmul(k, k)
+    return k, matmul(k, k)
 
 
 @njit(cache=True, nogil=True)
@@ -243,14 +218,14 @@ def los_inertial(geometry: np.ndarray, obt_s: float) -> np.ndarray:
 @njit(cache=True, nogil=True)
 def plane_normal(geometry: np.ndarray) -> np.ndarray:
     """Unit normal ``e_ca x e_v`` of the flyby plane."""
-    return _cross(geometry[3:6], geometry[6:9])
+    return cross(geometry[3:6], geometry[6:9])
 
 
 @njit(cache=True, nogil=True)
 def predicted_matrix(geometry: np.ndarray, los: np.ndarray, body_triad: np.ndarray) -> np.ndarray:
     """``[los, n, los x n] triad^T``: the attitude putting the triad's columns on ``los`` and the plane normal."""
     n = plane_normal(geometry)
-    side = _cross(los, n)
+    side = cross(los, n)
     out = np.empty((3, 3))
     for r in range(3):
         for s in range(3):
@@ -268,8 +243,8 @@ def reference(c: np.ndarray, i: np.ndarray, kp: float, ki: float, t: float, has_
     ``q_des`` is valid (not when ``R_des`` is one SciPy would first orthogonalise)."""
     r_c = rotation_matrix(c)
     los = los_inertial(geometry, obt_s)
-    r_des = _matmul(r_c, predicted_matrix(geometry, los, body_triad))
-    n_c = _matvec(r_c, plane_normal(geometry), False)
+    r_des = matmul(r_c, predicted_matrix(geometry, los, body_triad))
+    n_c = matvec(r_c, plane_normal(geometry), False)
     tau = obt_s - geometry[0]
     d, v = geometry[1], geometry[2]
     rate = v * d / (d * d + (v * tau) ** 2)
@@ -281,15 +256,15 @@ def reference(c: np.ndarray, i: np.ndarray, kp: float, ki: float, t: float, has_
     else:
         c_ddot = np.zeros(3)
     jac = left_jacobian(c)
-    omega_c = _matvec(jac, c_dot, False)  # angular velocity of R(c), inertial
+    omega_c = matvec(jac, c_dot, False)  # angular velocity of R(c), inertial
     omega_in = omega_c + rate * n_c
     # d/dt omega_in, neglecting J' c' (second order in the small correction)
-    alpha_in = _matvec(jac, c_ddot, False) + rate * _cross(omega_c, n_c) + accel * n_c
+    alpha_in = matvec(jac, c_ddot, False) + rate * cross(omega_c, n_c) + accel * n_c
     q, valid = quaternion_of_matrix(r_des)
     out = np.empty(22)
     out[:4] = q
-    out[4:7] = _matvec(r_des, omega_in, True)
-    out[7:10] = _matvec(r_des, alpha_in, True)
-    out[10:13] = _matvec(r_c, los, False)
+    out[4:7] = matvec(r_des, omega_in, True)
+    out[7:10] = matvec(r_des, alpha_in, True)
+    out[10:13] = matvec(r_c, los, False)
     out[13:] = r_des.ravel()
     return out, valid
