@@ -9,11 +9,13 @@ receives the opposite, ``body torque = -A tau_wheel`` with ``A`` the 3xN matrix 
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from obsw import control_kernels as kernels
 from obsw.config import ControlConfig
 
 
@@ -42,49 +44,16 @@ def _unit_quaternion(name: str, value: ArrayLike) -> NDArray[np.float64]:
     return q / norm
 
 
-def _error_quaternion(q: NDArray[np.float64], q_des: NDArray[np.float64]) -> NDArray[np.float64]:
-    """conj(q_des) (x) q, scalar-last, with a non-negative scalar part (the shortest way round)."""
-    dx, dy, dz, dw = q_des.tolist()  # plain floats: the same arithmetic as numpy scalars, without their overhead
-    dx, dy, dz = -dx, -dy, -dz
-    bx, by, bz, bw = q.tolist()
-    e = [
-        dw * bx + dx * bw + dy * bz - dz * by,
-        dw * by - dx * bz + dy * bw + dz * bx,
-        dw * bz + dx * by - dy * bx + dz * bw,
-        dw * bw - dx * bx - dy * by - dz * bz,
-    ]
-    return np.array([-c for c in e] if e[3] < 0 else e)
-
-
-def _rotvec(e: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation vector of a unit quaternion with non-negative scalar part, rad."""
-    v = e[:3]
-    s = float(np.sqrt(v @ v))
-    if s < 1e-12:
-        return 2.0 * v  # first order, exact to 1e-36
-    return v * (2.0 * np.arctan2(s, e[3]) / s)
-
-
-def _matrix(e: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation matrix of a unit quaternion (scalar-last)."""
-    x, y, z, w = e.tolist()
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    (ax, ay, az), (bx, by, bz) = a.tolist(), b.tolist()
-    return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
-
-
 def attitude_error_rad(q: ArrayLike, q_des: ArrayLike) -> NDArray[np.float64]:
     """Rotation vector of the body frame relative to the desired frame, rad (shortest way, |e| <= pi)."""
-    return _rotvec(_error_quaternion(_unit_quaternion("q", q), _unit_quaternion("q_des", q_des)))
+    return kernels.rotvec(kernels.error_quaternion(_unit_quaternion("q", q), _unit_quaternion("q_des", q_des)))
+
+
+def boresight_error_rad(q: ArrayLike, boresight_body: ArrayLike, los_inertial: ArrayLike) -> float:
+    """Angle between the body vector ``boresight_body`` turned to inertial by the attitude ``q`` (body->inertial,
+    scalar-last) and the unit vector ``los_inertial``, rad."""
+    return kernels.boresight_error_rad(_unit_quaternion("q", q), _vector("boresight_body", boresight_body, 3),
+                                       _vector("los_inertial", los_inertial, 3))
 
 
 def pd_torque_nm(
@@ -107,22 +76,28 @@ def pd_torque_nm(
     inertia = np.asarray(inertia_kgm2, dtype=float)
     if inertia.shape != (3, 3):
         raise ValueError(f"inertia_kgm2 must be 3x3, got shape {inertia.shape}")
+    vectors = (np.asarray(q, dtype=float), np.asarray(omega_rad_s, dtype=float), np.asarray(ref.q_des, dtype=float),
+               np.asarray(ref.omega_des_body, dtype=float), np.asarray(ref.alpha_des_body, dtype=float),
+               _NO_WHEELS if wheel_momentum_body_nms is None else np.asarray(wheel_momentum_body_nms, dtype=float))
+    if tuple(v.shape for v in vectors) == _PD_SHAPES:
+        # the kernel checks finiteness and the quaternions' norms; the checks below name what it refused
+        torque, usable = kernels.pd_torque(*vectors[:5], inertia, cfg.kp_nm_per_rad, cfg.kd_nms_per_rad,
+                                           cfg.feedforward, vectors[5], wheel_momentum_body_nms is not None)
+        if usable:
+            return torque
     omega = _vector("omega_rad_s", omega_rad_s, 3)
     omega_des = _vector("ref.omega_des_body", ref.omega_des_body, 3)
     alpha_des = _vector("ref.alpha_des_body", ref.alpha_des_body, 3)
-    e_q = _error_quaternion(_unit_quaternion("q", q), _unit_quaternion("ref.q_des", ref.q_des))  # body -> desired
-    error = _rotvec(e_q)
-    to_body = _matrix(e_q).T
-    omega_des_b = to_body @ omega_des
-    rate_error = omega - omega_des_b
-    torque = -cfg.kp_nm_per_rad * error - cfg.kd_nms_per_rad * rate_error
-    if cfg.feedforward:
-        h_total = inertia @ omega
-        if wheel_momentum_body_nms is not None:
-            h_total = h_total + _vector("wheel_momentum_body_nms", wheel_momentum_body_nms, 3)
-        # d/dt of (C omega_des) in the body frame is C alpha_des - omega x C omega_des
-        torque = torque + inertia @ (to_body @ alpha_des - _cross(omega, omega_des_b)) + _cross(omega, h_total)
-    return torque
+    q_unit = _unit_quaternion("q", q)
+    q_des_unit = _unit_quaternion("ref.q_des", ref.q_des)
+    with_wheels = cfg.feedforward and wheel_momentum_body_nms is not None
+    h = _vector("wheel_momentum_body_nms", wheel_momentum_body_nms, 3) if with_wheels else _NO_WHEELS
+    return kernels.pd_torque(q_unit, omega, q_des_unit, omega_des, alpha_des, inertia, cfg.kp_nm_per_rad,
+                             cfg.kd_nms_per_rad, cfg.feedforward, h, with_wheels)[0]
+
+
+_NO_WHEELS = np.zeros(3)
+_PD_SHAPES = ((4,), (3,), (4,), (3,), (3,), (3,))
 
 
 def wheel_torques_nm(
@@ -141,31 +116,34 @@ def wheel_torques_nm(
     If any wheel would exceed ``max_torque_nm`` all torques are scaled down by the same factor, so the body torque
     keeps its direction. Without enough usable wheels to span the request, the least-squares torque is returned.
     """
-    torque = _vector("body_torque_nm", body_torque_nm, 3)
+    torque = np.asarray(body_torque_nm, dtype=float)
     axes = np.asarray(wheel_axes, dtype=float)
-    if axes.ndim != 2 or axes.shape[0] != 3 or axes.shape[1] < 1:
-        raise ValueError(f"wheel_axes must be 3xN with N >= 1, got shape {axes.shape}")
-    n = axes.shape[1]
-    momentum = _vector("wheel_momentum_nms", wheel_momentum_nms, n)
-    if not max_torque_nm > 0:
-        raise ValueError(f"max_torque_nm must be > 0, got {max_torque_nm}")
-    if not max_momentum_nms > 0:
-        raise ValueError(f"max_momentum_nms must be > 0, got {max_momentum_nms}")
-
+    momentum = np.asarray(wheel_momentum_nms, dtype=float)
+    n = axes.shape[1] if axes.ndim == 2 else 0
     usable = np.ones(n, dtype=bool) if in_use is None else np.asarray(in_use, dtype=bool).copy()
-    if usable.shape != (n,):
-        raise ValueError(f"in_use must have {n} values, got shape {usable.shape}")
+    # one combined test of every check below; they run, in order, to name what it refused
+    if not (torque.shape == (3,) and axes.shape[0] == 3 and n >= 1 and momentum.shape == (n,) and max_torque_nm > 0
+            and max_momentum_nms > 0 and usable.shape == (n,) and kernels.all_finite(torque)
+            and kernels.all_finite(momentum)):
+        _vector("body_torque_nm", body_torque_nm, 3)
+        if axes.ndim != 2 or axes.shape[0] != 3 or axes.shape[1] < 1:
+            raise ValueError(f"wheel_axes must be 3xN with N >= 1, got shape {axes.shape}")
+        _vector("wheel_momentum_nms", wheel_momentum_nms, n)
+        if not max_torque_nm > 0:
+            raise ValueError(f"max_torque_nm must be > 0, got {max_torque_nm}")
+        if not max_momentum_nms > 0:
+            raise ValueError(f"max_momentum_nms must be > 0, got {max_momentum_nms}")
+        if usable.shape != (n,):
+            raise ValueError(f"in_use must have {n} values, got shape {usable.shape}")
     tau = np.zeros(n)
+    peak = 0.0
     for _ in range(n):
-        tau = np.zeros(n)
-        if usable.any():
-            tau[usable] = -_split(axes, usable) @ torque
         # a saturated wheel may only be slowed down, never sped up further
-        pushing = usable & (np.abs(momentum) >= max_momentum_nms) & (tau * momentum > 0)
-        if not pushing.any():
+        tau, pushing, count, peak = kernels.split_pass(_split(axes, usable) @ torque, usable, momentum,
+                                                       max_momentum_nms)
+        if count == 0:
             break
         usable &= ~pushing
-    peak = float(np.max(np.abs(tau), initial=0.0))
     if peak > max_torque_nm:
         tau *= max_torque_nm / peak
     return tau
@@ -176,15 +154,25 @@ _SPLITS_KEPT = 64  # wheel sets remembered: a spacecraft has a handful (all whee
 
 
 def _split(axes: NDArray[np.float64], usable: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """The pseudo-inverse of the usable wheels' axes, computed once per axes and wheel set (the same matrix every
-    period: its SVD was most of the allocation's time); the array returned is the one computed, bit for bit."""
+    """Minus the pseudo-inverse of the usable wheels' axes (their torques per unit body torque, ``-A tau = T``),
+    computed once per axes and wheel set (the same matrix every period: its SVD was most of the allocation's time);
+    the array returned is the one computed, bit for bit."""
     key = (axes.tobytes(), usable.tobytes(), axes.shape)
     split = _SPLITS.get(key)
     if split is None:
         if len(_SPLITS) >= _SPLITS_KEPT:
             _SPLITS.clear()
-        split = np.linalg.pinv(axes[:, usable])
+        split = -np.linalg.pinv(axes[:, usable])
         split.setflags(write=False)
         _SPLITS[key] = split
     return split
 
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the control kernels now, as a run calls them."""
+    unit, zero = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)
+    ref = SimpleNamespace(q_des=unit, omega_des_body=zero, alpha_des_body=zero)
+    torque = pd_torque_nm(unit, zero, ref, np.eye(3), ControlConfig(), zero)
+    wheel_torques_nm(torque, np.eye(3), zero, 1.0, 1.0, np.ones(3, dtype=bool))
+    boresight_error_rad(unit, (0.0, 0.0, 1.0), np.array([0.0, 0.0, 1.0]))

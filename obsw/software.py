@@ -57,7 +57,7 @@ from contracts.mode import Mode
 from contracts.task import Task
 from obsw.attitude import AttitudeEstimator
 from obsw.config import ObswConfig
-from obsw.control import pd_torque_nm, wheel_torques_nm
+from obsw.control import boresight_error_rad, pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
 from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
@@ -195,6 +195,7 @@ class FlightSoftware:
         n_wheels = self.axes.shape[1]
         self.wheel_health = WheelHealth(cfg.fdir, n_wheels, w.max_momentum_nms)
         self.wheels_in_use = (1 << n_wheels) - 1
+        self._in_use_of: tuple[int, np.ndarray] = (-1, np.zeros(0, dtype=bool))  # (wheel set, its booleans)
         # what the attitude task determined this period, for the tasks after it
         self._q = np.array([0.0, 0.0, 0.0, 1.0])
         self._omega = np.zeros(3)
@@ -454,7 +455,7 @@ class FlightSoftware:
                             seen)  # type: ignore[arg-type]
         self._torque = tau
         wheel_h = self._wheel_h
-        saturated = bool(np.any(np.abs(wheel_h) >= self.max_momentum_nms))
+        saturated = any(abs(h) >= self.max_momentum_nms for h in wheel_h.tolist())
         if saturated and not self._wheel_saturated:
             worst = int(np.argmax(np.abs(wheel_h)))
             act.emit(EventKind.PARAM_CHECK_FAILED, WheelLimit(worst, float(wheel_h[worst])))
@@ -765,8 +766,12 @@ class FlightSoftware:
             self._mode_event(self.modes.handle(Fault(why), obt), obt)
 
     def _in_use(self) -> np.ndarray:
-        """Booleans of the wheels in use."""
-        return np.array([bool(self.wheels_in_use >> k & 1) for k in range(self.axes.shape[1])])
+        """Booleans of the wheels in use (read-only; built again only when the wheel set changes)."""
+        if self._in_use_of[0] != self.wheels_in_use:
+            mask = np.array([bool(self.wheels_in_use >> k & 1) for k in range(self.axes.shape[1])])
+            mask.setflags(write=False)
+            self._in_use_of = (self.wheels_in_use, mask)
+        return self._in_use_of[1]
 
     def _delete_activities(self, cmd: pus.DeleteActivities, obt: float) -> None:
         self.schedule.delete(Selection(request_ids=frozenset(r.seq_count for r in cmd.request_ids)))
@@ -992,12 +997,12 @@ class FlightSoftware:
         self.last_reference = ref
         if seen is not None:  # the boresight at the exposure against the LOS measured then
             q_exposure = self._attitude_at(seen.exposure_obt_s)
-            boresight = Rotation.from_quat(q_exposure).apply(np.asarray(self.camera.boresight_body, dtype=float))
-            self.pointing_error_est_rad = float(np.arccos(np.clip(boresight @ seen.los_inertial, -1, 1)))
+            self.pointing_error_est_rad = boresight_error_rad(q_exposure, self.camera.boresight_body,
+                                                              seen.los_inertial)
         body_torque = pd_torque_nm(q, omega, ref, self.inertia, self.cfg.control, self.axes @ wheel_h)
         tau = wheel_torques_nm(body_torque, self.axes, wheel_h, self.max_torque_nm, self.max_momentum_nms,
                                self._in_use())
-        if not np.all(np.isfinite(tau)):
+        if not all(math.isfinite(t) for t in tau.tolist()):
             raise InternalFault(f"non-finite wheel torque {tau.tolist()} at OBT {obt}")
         return tau
 

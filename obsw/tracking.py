@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from obsw import tracking_kernels as kernels
 from obsw.config import TrackingConfig
 from obsw.trajectory import NominalTrajectory
 
@@ -67,42 +68,9 @@ def _cross(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64
 def loop_transition(kp: float, ki: float, h_s: float) -> NDArray[np.float64]:
     """exp(M h) for M = [[-kp, -1], [ki, 0]] in closed form (M = a I + N with N^2 = delta I); read-only (cached:
     the loop steps by the same control period almost every time)."""
-    a = -0.5 * kp
-    delta = 0.25 * kp * kp - ki
-    nil = np.array([[-kp - a, -1.0], [ki, -a]])
-    root = float(np.sqrt(abs(delta)))
-    x = root * h_s
-    if x < 1e-4:
-        # series of cosh/cos and sinh(x)/x, sin(x)/x to well below double precision at this size
-        sgn = 1.0 if delta >= 0 else -1.0
-        even = 1.0 + sgn * x * x / 2.0
-        odd = h_s * (1.0 + sgn * x * x / 6.0)
-    elif delta > 0:
-        even, odd = np.cosh(x), np.sinh(x) / root
-    else:
-        even, odd = np.cos(x), np.sin(x) / root
-    out = np.exp(a * h_s) * (even * np.eye(2) + odd * nil)
+    out = np.array(kernels.transition(float(kp), float(ki), float(h_s))).reshape(2, 2)
     out.setflags(write=False)
     return out
-
-
-def _skew(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """The cross-product matrix of a 3-vector: ``_skew(v) @ w = v x w``."""
-    x, y, z = v.tolist()
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
-_EYE3 = np.eye(3)
-_EYE3.setflags(write=False)
-
-
-def _left_jacobian(phi: NDArray[np.float64]) -> NDArray[np.float64]:
-    """SO(3) left Jacobian: the angular velocity of ``R(phi(t))`` is ``J(phi) phi'``."""
-    angle = math.sqrt(phi.dot(phi))  # numpy.linalg.norm's own evaluation, without its overhead
-    k = _skew(phi)
-    if angle < 1e-6:
-        return _EYE3 + 0.5 * k + k @ k / 6.0
-    return _EYE3 + (1 - np.cos(angle)) / angle**2 * k + (angle - np.sin(angle)) / angle**3 * (k @ k)
 
 
 def _body_triad(cfg: TrackingConfig, boresight_body: tuple[float, float, float]) -> NDArray[np.float64]:
@@ -115,15 +83,6 @@ def _body_triad(cfg: TrackingConfig, boresight_body: tuple[float, float, float])
     return np.column_stack([b, p, _cross(b, p)])
 
 
-def _rotation_matrix(rotvec: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rodrigues: the rotation matrix of a rotation vector (rad)."""
-    angle = math.sqrt(rotvec @ rotvec)
-    k = _skew(rotvec)
-    if angle < 1e-8:
-        return _EYE3 + k + 0.5 * (k @ k)
-    return _EYE3 + np.sin(angle) / angle * k + (1 - np.cos(angle)) / angle**2 * (k @ k)
-
-
 def quaternion_of_matrix(m: NDArray[np.float64]) -> NDArray[np.float64]:
     """Scalar-last unit quaternion of a rotation matrix: ``Rotation.from_matrix(m).as_quat()`` to the last bit, at a
     twentieth of its cost.
@@ -132,56 +91,30 @@ def quaternion_of_matrix(m: NDArray[np.float64]) -> NDArray[np.float64]:
     Dynamics 31(2), 2008) in the operations and order of SciPy's implementation; a matrix SciPy would first
     orthogonalise (its Gram matrix off the identity by 1e-12 or more) or refuse (not a rotation) goes to SciPy.
     """
-    m00, m01, m02 = float(m[0, 0]), float(m[0, 1]), float(m[0, 2])
-    m10, m11, m12 = float(m[1, 0]), float(m[1, 1]), float(m[1, 2])
-    m20, m21, m22 = float(m[2, 0]), float(m[2, 1]), float(m[2, 2])
-    gram = (m00 * m00 + m01 * m01 + m02 * m02 - 1.0, m10 * m10 + m11 * m11 + m12 * m12 - 1.0,
-            m20 * m20 + m21 * m21 + m22 * m22 - 1.0, m00 * m10 + m01 * m11 + m02 * m12,
-            m00 * m20 + m01 * m21 + m02 * m22, m10 * m20 + m11 * m21 + m12 * m22)
-    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20)
-    # SciPy's test is 1e-12 on the Gram matrix: half of it leaves room for the rounding of either evaluation
-    if not (max(abs(g) for g in gram) < 0.5e-12 and det > 0.5):
-        return Rotation.from_matrix(m).as_quat()
-    trace = m00 + m11 + m22
-    decision = (m00, m11, m22, trace)
-    choice = 0
-    for i in (1, 2, 3):
-        if decision[i] > decision[choice]:
-            choice = i
-    rows = ((m00, m01, m02), (m10, m11, m12), (m20, m21, m22))
-    q = [0.0, 0.0, 0.0, 0.0]
-    if choice != 3:
-        i = choice
-        j, k = (i + 1) % 3, (i + 2) % 3
-        q[i] = 1 - trace + 2 * rows[i][i]
-        q[j] = rows[j][i] + rows[i][j]
-        q[k] = rows[k][i] + rows[i][k]
-        q[3] = rows[k][j] - rows[j][k]
-    else:
-        q[0] = m21 - m12
-        q[1] = m02 - m20
-        q[2] = m10 - m01
-        q[3] = 1 + trace
-    norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    return np.array([q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm])
+    arr = np.asarray(m, dtype=float)
+    if arr.shape == (3, 3):
+        q, valid = kernels.quaternion_of_matrix(arr)
+        if valid:
+            return q
+    return Rotation.from_matrix(m).as_quat()
 
 
-def _predicted_matrix(trajectory: NominalTrajectory, obt_s: float, body_triad: NDArray[np.float64],
-                      los: NDArray[np.float64] | None = None) -> NDArray:
-    """``[los, n, los x n] triad^T`` (``los``: the trajectory's at ``obt_s``, if already at hand)."""
-    lx, ly, lz = (trajectory.los_inertial(obt_s) if los is None else los).tolist()
-    nx, ny, nz = trajectory.plane_normal.tolist()  # exactly orthogonal to the LOS of a straight-line flyby
-    columns = np.array([[lx, nx, ly * nz - lz * ny], [ly, ny, lz * nx - lx * nz], [lz, nz, lx * ny - ly * nx]])
-    return columns @ body_triad.T
+def _geometry(trajectory: NominalTrajectory) -> NDArray[np.float64]:
+    """The kernels' form of a trajectory: ``[t_ca (OBT s), d (m), v (m/s), e_ca (3), e_v (3)]``."""
+    return np.array([trajectory.ca_time_obt_s, trajectory.ca_distance_m, trajectory.speed_m_s,
+                     *trajectory.ca_direction, *trajectory.approach_direction])
 
 
 def predicted_attitude(trajectory: NominalTrajectory, obt_s: float, cfg: TrackingConfig,
                        boresight_body: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> Rotation:
     """Attitude putting the boresight on the predicted LOS and the plane-normal body axis on the plane normal."""
-    return Rotation.from_matrix(_predicted_matrix(trajectory, obt_s, _body_triad(cfg, boresight_body)))
+    geometry = _geometry(trajectory)
+    los = kernels.los_inertial(geometry, float(obt_s))
+    return Rotation.from_matrix(kernels.predicted_matrix(geometry, los, _body_triad(cfg, boresight_body)))
 
 
 _Line = tuple[float, NDArray[np.float64], NDArray[np.float64]]
+_NO_LINE: _Line = (0.0, np.zeros(3), np.zeros(3))  # the kernels' placeholder for "no measurement yet"
 
 
 class TrackingLoop:
@@ -201,6 +134,8 @@ class TrackingLoop:
         self._t: float | None = None  # loop time (advanced by dt_s), s
         self._obt: float | None = None
         self._trajectory: NominalTrajectory | None = None
+        self._geometry_of: NominalTrajectory | None = None  # the trajectory whose kernel form is held
+        self._geometry = np.zeros(9)
         # last two measurements: (loop time, OBT, measured LOS inertial)
         self._meas: list[tuple[float, float, NDArray[np.float64]]] = []
         self._line: _Line | None = None  # the input, from the measurements and the current trajectory
@@ -250,46 +185,41 @@ class TrackingLoop:
     def _input_at(self, line: _Line, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Input offset and its rate at loop time ``t``."""
         t_k, y_k, slope = line
-        age = t - t_k
-        if age < self.cfg.extrapolation_limit_s:
-            return y_k + slope * age, slope
-        return y_k + slope * self.cfg.extrapolation_limit_s, np.zeros(3)
+        return kernels.input_at(t_k, y_k, slope, self.cfg.extrapolation_limit_s, float(t))
+
+    def _line_args(self) -> tuple[bool, float, NDArray[np.float64], NDArray[np.float64]]:
+        """The input line as the kernels take it: (there is one, its loop time, offset, slope)."""
+        line = self._line
+        return (False, *_NO_LINE) if line is None else (True, *line)
+
+    def _geometry_array(self, trajectory: NominalTrajectory) -> NDArray[np.float64]:
+        """The kernels' form of ``trajectory``, built once per trajectory."""
+        if trajectory is not self._geometry_of:
+            self._geometry, self._geometry_of = _geometry(trajectory), trajectory
+        return self._geometry
 
     # --- loop ----------------------------------------------------------------------------------------------------
 
     def _propagate(self, dt_s: float) -> None:
         """Advance (c, i) exactly over dt_s: with e = y - c and a linear input, (e, i - y') obeys z' = M z."""
         assert self._t is not None
-        line = self._line
-        if line is None:
-            self._c = self._c + self._i * dt_s  # no measurement yet: nothing to correct against
-            self._t += dt_s
-            return
-        t0, t1 = self._t, self._t + dt_s
-        knot = line[0] + self.cfg.extrapolation_limit_s  # the input stops sloping here
-        pieces = [t0, knot, t1] if t0 < knot < t1 else [t0, t1]
-        for a, b in zip(pieces[:-1], pieces[1:]):
-            y_a, slope = self._input_at(line, a)
-            z = np.vstack([y_a - self._c, self._i - slope])
-            z = loop_transition(self._kp, self._ki, b - a) @ z
-            self._c = y_a + slope * (b - a) - z[0]
-            self._i = z[1] + slope
-        self._t = t1
+        state = kernels.propagate(self._c, self._i, self._t, float(dt_s), *self._line_args(),
+                                  self.cfg.extrapolation_limit_s, self._kp, self._ki)
+        self._c, self._i = state[:3], state[3:]
+        self._t += dt_s
 
     def _correction_rate(self) -> NDArray[np.float64]:
         """c' = i + kp (y - c) at the current loop time."""
         assert self._t is not None
-        if self._line is None:
-            return self._i.copy()
-        y, _ = self._input_at(self._line, self._t)
-        return self._i + self._kp * (y - self._c)
+        return kernels.correction_rate(self._c, self._i, self._kp, *self._line_args(),
+                                       self.cfg.extrapolation_limit_s, self._t)
 
     def _rebase(self, old: NominalTrajectory, new: NominalTrajectory) -> None:
         """Keep the commanded attitude and rate continuous when the trajectory model is replaced."""
         assert self._obt is not None and self._t is not None
         rate_before = self._correction_rate()
-        shift = Rotation.from_rotvec(offset_rotvec(new.los_inertial(self._obt), old.los_inertial(self._obt)))
-        self._c = (Rotation.from_rotvec(self._c) * shift).as_rotvec()
+        shift = offset_rotvec(new.los_inertial(self._obt), old.los_inertial(self._obt))
+        self._c = kernels.compose_rotvec(self._c, shift)
         self._line = self._input_line(new)
         # commanded LOS rate ~ theta' n + c': move the difference of the trajectories' rates into c'
         wanted_rate = rate_before + (old.los_rate_rad_s(self._obt) - new.los_rate_rad_s(self._obt)) * new.plane_normal
@@ -321,15 +251,16 @@ class TrackingLoop:
         ``gate_rad`` ignores a measurement whose offset is farther than this from the loop's prediction of it
         (counted in ``rejected_count``), unless the ``cfg.gate_release_count`` before it were all ignored.
         """
-        if not np.isfinite(obt_s):
+        if not math.isfinite(obt_s):
             raise ValueError(f"obt_s must be finite, got {obt_s}")
         los = None
         if los_measured_inertial is not None:
             los = np.asarray(los_measured_inertial, dtype=float)
-            norm = float(np.linalg.norm(los)) if los.shape == (3,) else 0.0
+            x, y, z = los.tolist() if los.shape == (3,) else (0.0, 0.0, 0.0)
+            norm = math.sqrt(x * x + y * y + z * z)
             if los.shape != (3,) or not np.isfinite(norm) or abs(norm - 1.0) > 1e-6:
                 raise ValueError(f"los_measured_inertial must be a unit 3-vector, got {los_measured_inertial}")
-            if measured_obt_s is not None and not (np.isfinite(measured_obt_s) and measured_obt_s <= obt_s):
+            if measured_obt_s is not None and not (math.isfinite(measured_obt_s) and measured_obt_s <= obt_s):
                 raise ValueError(f"measured_obt_s {measured_obt_s} must be finite and not after obt_s {obt_s}")
         if gate_rad is not None and not gate_rad > 0:
             raise ValueError(f"gate_rad must be > 0 or None, got {gate_rad}")
@@ -338,7 +269,7 @@ class TrackingLoop:
         if self._t is None:
             self._t = 0.0
         else:
-            if not (np.isfinite(dt_s) and dt_s >= 0):
+            if not (math.isfinite(dt_s) and dt_s >= 0):
                 raise ValueError(f"dt_s must be finite and >= 0, got {dt_s}")
             if self._trajectory is not None and trajectory is not self._trajectory and trajectory != self._trajectory:
                 self._rebase(self._trajectory, trajectory)
@@ -372,27 +303,25 @@ class TrackingLoop:
     def _reference(self, trajectory: NominalTrajectory) -> Reference:
         """R_des = R(c) R_pred; omega and alpha from theta', theta'' about the normal plus the correction's motion."""
         assert self._obt is not None and self._t is not None
-        obt = self._obt
-        r_c = _rotation_matrix(self._c)
-        los = trajectory.los_inertial(obt)
-        r_des = r_c @ _predicted_matrix(trajectory, obt, self._triad, los)
-        n_c = r_c @ trajectory.plane_normal
-        rate = float(trajectory.los_rate_rad_s(obt))
-        accel = float(trajectory.los_accel_rad_s2(obt))
-        c_dot = self._correction_rate()
-        if self._line is None:
-            c_ddot = np.zeros(3)
-        else:
-            y, y_dot = self._input_at(self._line, self._t)
-            c_ddot = self._ki * (y - self._c) + self._kp * (y_dot - c_dot)
-        jac = _left_jacobian(self._c)
-        omega_c = jac @ c_dot  # angular velocity of R(c), inertial
-        omega_in = omega_c + rate * n_c
-        # d/dt omega_in, neglecting J' c' (second order in the small correction)
-        alpha_in = jac @ c_ddot + rate * _cross(omega_c, n_c) + accel * n_c
+        out, valid = kernels.reference(self._c, self._i, self._kp, self._ki, self._t, *self._line_args(),
+                                       self.cfg.extrapolation_limit_s, self._geometry_array(trajectory), self._obt,
+                                       self._triad)
         return Reference(
-            q_des=quaternion_of_matrix(r_des),
-            omega_des_body=r_des.T @ omega_in,
-            alpha_des_body=r_des.T @ alpha_in,
-            los_commanded_inertial=r_c @ los,
+            q_des=out[:4] if valid else Rotation.from_matrix(out[13:].reshape(3, 3)).as_quat(),
+            omega_des_body=out[4:7],
+            alpha_des_body=out[7:10],
+            los_commanded_inertial=out[10:13],
         )
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) the loop's kernels now, as a run calls them: periods with and without a
+    measurement, a gated one and a change of trajectory."""
+    trajectory = NominalTrajectory(ca_time_obt_s=100.0, ca_distance_km=50.0, speed_km_s=7.0,
+                                   approach_direction=(1.0, 0.0, 0.0), ca_direction=(0.0, 1.0, 0.0))
+    loop = TrackingLoop(TrackingConfig())
+    loop.update(0.0, 0.1, trajectory, None)
+    loop.update(0.1, 0.1, trajectory, trajectory.los_inertial(0.1))
+    loop.update(0.2, 0.1, trajectory, trajectory.los_inertial(0.2), measured_obt_s=0.15, gate_rad=0.1)
+    loop.update(0.3, 0.1, trajectory.with_ca(101.0, 50.0), None, extrapolate=False)
+    predicted_attitude(trajectory, 0.3, loop.cfg)

@@ -5,7 +5,9 @@ changes, with the in-process keys fixed by the seed; recorded again with the cam
 chain robust to it, and with the attitude estimator (a multiplicative EKF that filters the star tracker and removes
 the estimated gyro bias) and on-board FDIR, both changes of flight behaviour on purpose; recorded again when the MEKF's
 covariance steps were compiled and the universe's truth geometry vectorised, the same equations rounded in another
-order), for the same seed.
+order; recorded again when the control path (tracking loop, PD law, wheel split) was compiled, the same equations
+rounded in another order: torques within 3e-16 N m of the previous record; and with the filter's 3x3 inverse by
+its adjugate), for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -31,10 +33,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "79b4cf1580f55830398424f3662b468d80319240ef11567e2465f9cfdc336b52",
-    "replies": "e2501716bdf2c929824a7093f85e6d7496ff89ade48a2190280d66164dc40623",
+    "tm": "e3a7f27e18181a92bfc707b279d92e667483b3747ed97344e6afd14f45bfaa32",
+    "replies": "631ff197bfd487ef91ac360ecd16a1a3bdc11074f640a3d266f094660b3dfdf5",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "2bc7dc17d6ad14d28ecca53801b214c9f3bb2d9f98c9fa58c99fda8ffb88566f",
+    "truth": "841b0e64b251b821dc87e820b178cef8f868109b71235269f99f86d9dfd40577",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,
