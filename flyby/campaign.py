@@ -23,7 +23,6 @@ from pathlib import Path
 
 from analysis.campaign_report import ScenarioOutcome, campaign_html, junit_xml, traceability_html
 from analysis.expectations import judge, nonfinite_truth
-from analysis.report import build_report
 from analysis.runfolder import load_run
 from analysis.scoring import score_run
 from contracts.clock import WallClock
@@ -66,6 +65,7 @@ def _write_run_folder(job: Job, run: object) -> None:
 
 def run_one(job: Job) -> ScenarioOutcome:
     """Run one scenario in process, write its run folder and report, and judge it."""
+    from analysis.report import build_report  # matplotlib: loaded by the runs, not by the command line's parser
     from flyby.inprocess import InProcessRun, run_in_process
 
     clock = WallClock()

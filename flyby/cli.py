@@ -140,6 +140,13 @@ def cmd_dictionary(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_report(args: argparse.Namespace) -> int:
+    """``flyby report RUN_DIR``; the report's module (matplotlib: 1.5 s of imports) loads only for it."""
+    from analysis.report import cmd_report as report
+
+    return report(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every sub-command."""
     p = argparse.ArgumentParser(prog="flyby", description=__doc__)
@@ -179,7 +186,6 @@ def build_parser() -> argparse.ArgumentParser:
     dic = sub.add_parser("dictionary", help="print the TM/TC dictionary as Markdown, or export its telemetry as XTCE")
     dic.add_argument("--xtce", type=Path, default=None, metavar="FILE", help="write XTCE 1.2 (for Yamcs) to FILE")
     dic.set_defaults(func=cmd_dictionary)
-    from analysis.report import cmd_report
     from ground.tmquery import add_tm_arguments
 
     rep = sub.add_parser("report", help="(re)write a run folder's flyby report: report.html, report/, figures.json")
