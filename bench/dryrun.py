@@ -3,7 +3,8 @@
 Run: .venv/bin/python bench/dryrun.py [--rounds N] [--jobs J] [--no-dry-run]
 Measured, each round in turn (so a slow spell of this shared machine hits them alike):
 - reference: one in-process run of the nominal flyby at centroid-level fidelity (what one dry-run case costs);
-- the dry run of configs/timelines/flyby-imaging.yaml on the nominal scenario (five cases, J at a time, default one per core);
+- the dry run of configs/timelines/flyby-imaging.yaml on the nominal scenario (five cases, J at a time, default one
+  per core);
 - the same on ground-early-knowledge (the C/A-240 s rows refused: no imaging, mostly STANDBY);
 - the replay of a recorded nominal run (4200 periods, 463 frames) through the flight software, image level, its
   frames kept by reference (rendered again and checked) and kept raw (read from the record).
@@ -38,7 +39,8 @@ def main() -> None:
     """Time each item ``--rounds`` times, interleaved; print medians and ratios to the reference."""
     p = argparse.ArgumentParser(description=__doc__)
     p.add_argument("--rounds", type=int, default=3)
-    p.add_argument("--jobs", type=int, default=None, help="cases at a time (default: one per core, as flyby ground does)")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="cases at a time (default: one per core, as flyby ground does)")
     p.add_argument("--no-dry-run", action="store_true", help="time the reference and the replays only")
     args = p.parse_args()
     nominal, timeline = load_run_inputs(SCENARIOS / "nominal.yaml")
