@@ -6,10 +6,10 @@ import sqlite3
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from contracts import pus
 from ground.archive import Archive, ArchiveError
+from ground.segment import ReceivedPacket
 
 MODE_NAMES = {m.value: m.name for m in pus.Mode}
 
@@ -41,9 +41,8 @@ def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
     return telemetry_of(pairs, source)
 
 
-def received_telemetry(received: Iterable[Any], source: str) -> Telemetry:
-    """The Telemetry of the packets ground received (``ground.segment.ReceivedPacket``: its decoding is kept, so
-    nothing is decoded twice)."""
+def received_telemetry(received: Iterable[ReceivedPacket], source: str) -> Telemetry:
+    """The Telemetry of the packets ground received (their decoding is kept, so nothing is decoded twice)."""
     return telemetry_of([None if p.header is None or p.report is None else (p.header, p.report)
                          for p in received], source)
 

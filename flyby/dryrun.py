@@ -108,33 +108,23 @@ def rehearsal_scenario(sc: Scenario, belief: FlybyBelief, case: Case, upload_utc
     return scenario_from_dict(data, f"dry run case '{case.name}'")
 
 
-class _APriori:
-    """Ground's a-priori time correlation, which is the dry run's clock: OBT = UTC + offset."""
-
-    def __init__(self, offset_s: float) -> None:
-        self.offset_s = offset_s
-
-    def to_obt(self, utc_s: float) -> float:
-        """On-board time at ``utc_s``, s."""
-        return utc_s + self.offset_s
-
-
 def case_end_s(sc: Scenario, belief: FlybyBelief, timeline: Timeline, true_ca_utc_s: float) -> float | None:
     """When a case has shown all it can (UTC s): its last command released and the requirements' window after the
     true C/A closed, plus ``END_MARGIN_S``; None if the timeline cannot be resolved (the whole scenario is run, and
     ground reports why). Tags are resolved as ground resolves them on its belief, and again on the true C/A: in
     autonomous tracking the flight software moves its C/A-relative commands to the C/A it recognised."""
+    from ground.correlation import Correlation
     from timeline.convert import resolved_commands
     from timeline.model import TimelineError
 
-    offset = sc.ground.a_priori_obt_offset_s
+    clock = Correlation.exact(sc.ground.a_priori_obt_offset_s, 0.0)  # the dry run's on-board time
     last_utc = -math.inf
     for ca_utc_s in (belief.ca_utc_s, true_ca_utc_s):
         try:
-            rows = resolved_commands(timeline, _APriori(offset), epoch_utc=sc.epoch_utc, ca_utc_s=ca_utc_s)
+            rows = resolved_commands(timeline, clock, epoch_utc=sc.epoch_utc, ca_utc_s=ca_utc_s)
         except TimelineError:
             return None
-        last_utc = max([last_utc, *(r.obt_s - offset for r in rows)])
+        last_utc = max([last_utc, *(clock.to_utc(r.obt_s) for r in rows)])
     return max(last_utc, true_ca_utc_s + sc.ground.report.in_view_after_ca_s) + END_MARGIN_S
 
 
@@ -262,17 +252,6 @@ def case_requirements(world: Scenario) -> ReportConfig:
     return cfg.model_copy(update={"peak_rate_required_deg_s": min(cfg.peak_rate_required_deg_s, asked_deg_s)})
 
 
-def _load_kernels() -> None:
-    """Load the compiled kernels a case runs (0.4 s a process from Numba's cache)."""
-    from obsw import control, mekf_kernels, tracking
-    from universe import attitude_rk4
-
-    mekf_kernels.warm_up()
-    tracking.warm_up()
-    control.warm_up()
-    attitude_rk4.warm_up()
-
-
 def _rehearse(args: tuple[Scenario, Timeline, FlybyBelief, Case, float | None, str]) -> CaseResult:
     return rehearse_case(*args)
 
@@ -288,7 +267,11 @@ def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None,
     jobs = min(len(todo), os.cpu_count() or 1) if jobs is None else jobs
     if jobs <= 1:
         return [_rehearse(t) for t in todo]
-    _load_kernels()  # once here, not once per worker: the workers fork from this process
+    from obsw import kernels
+    from universe import attitude_rk4
+
+    kernels.warm_up()  # loaded once here (0.4 s a process from Numba's cache), not in each worker forked from here
+    attitude_rk4.warm_up()
     with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
         return list(pool.map(_rehearse, todo))
 

@@ -19,7 +19,7 @@ from contracts.errors import NodeFailure
 from contracts.messages import StepReply, StepRequest
 from contracts.runtime import Attachment
 from contracts.steplog import FrameKeeping, StepLogWriter
-from obsw import control, imaging_kernels, mekf_kernels, tracking
+from obsw import kernels
 from obsw.software import FlightSoftware
 
 log = logging.getLogger("obsw")
@@ -100,10 +100,7 @@ def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: st
     wall = WallClock()
     t0 = wall.now()
     # compiled code: seconds on the first run after an install, paid before the universe's first step can wait on it
-    mekf_kernels.warm_up()
-    imaging_kernels.warm_up()
-    tracking.warm_up()
-    control.warm_up()
+    kernels.warm_up()
     log.info("attitude filter, imaging, tracking and control kernels ready in %.1f s", wall.now() - t0)
     with zenoh.open(conf) as session:
         bus = Attachment(session, keys, "obsw", WallClock(), log)
