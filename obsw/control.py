@@ -168,7 +168,6 @@ def _split(axes: NDArray[np.float64], usable: NDArray[np.bool_]) -> NDArray[np.f
     return split
 
 
-
 def warm_up() -> None:
     """Compile (or load from the cache) the control kernels now, as a run calls them."""
     unit, zero = np.array([0.0, 0.0, 0.0, 1.0]), np.zeros(3)

@@ -54,7 +54,8 @@ def _to_body(e: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def _finite(a: np.ndarray) -> bool:
+def all_finite(a: np.ndarray) -> bool:
+    """Whether every element of ``a`` is finite."""
     for x in a.flat:
         if not math.isfinite(x):
             return False
@@ -64,7 +65,7 @@ def _finite(a: np.ndarray) -> bool:
 @njit(cache=True, nogil=True)
 def _unit(q: np.ndarray) -> tuple[np.ndarray, bool]:
     """``q / |q|`` and whether ``q`` is finite and of norm >= 1e-9."""
-    if not _finite(q):
+    if not all_finite(q):
         return q, False
     norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     if norm < 1e-9:
@@ -81,9 +82,9 @@ def pd_torque(q: np.ndarray, omega: np.ndarray, q_des: np.ndarray, omega_des: np
     input was usable (finite vectors, non-zero quaternions): when not, the torque is zeros."""
     q_unit, q_ok = _unit(q)
     q_des_unit, q_des_ok = _unit(q_des)
-    usable = q_ok and q_des_ok and _finite(omega) and _finite(omega_des) and _finite(alpha_des)
+    usable = q_ok and q_des_ok and all_finite(omega) and all_finite(omega_des) and all_finite(alpha_des)
     if feedforward and with_wheels:
-        usable = usable and _finite(wheel_momentum)
+        usable = usable and all_finite(wheel_momentum)
     if not usable:
         return np.zeros(3), False
     e_q = error_quaternion(q_unit, q_des_unit)  # body -> desired
@@ -138,9 +139,3 @@ def boresight_error_rad(q: np.ndarray, boresight_body: np.ndarray, los_inertial:
     turned = boresight_body + (q[3] / norm) * t + cross(u, t)
     dot = turned[0] * los_inertial[0] + turned[1] * los_inertial[1] + turned[2] * los_inertial[2]
     return math.acos(min(max(dot, -1.0), 1.0))
-
-
-@njit(cache=True, nogil=True)
-def all_finite(a: np.ndarray) -> bool:
-    """Whether every element of ``a`` is finite."""
-    return _finite(a)

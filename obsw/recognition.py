@@ -161,11 +161,6 @@ class TrajectoryRecognizer:
             }
         )
 
-    def predicted_theta(self, obt_s: float) -> tuple[float, float]:
-        """(in-plane LOS angle rad, its one-sigma rad) the continuous estimate predicts at ``obt_s``."""
-        t, d_km, cov = self.continuous()
-        return predicted_theta(t, d_km, cov, self.nominal.speed_m_s, obt_s)
-
     @property
     def last_measurement_obt_s(self) -> float | None:
         """The time stamp of the measurement added last, OBT s (None before any)."""

@@ -39,20 +39,9 @@ class AttitudeState:
     wheel_speed_rad_s: np.ndarray
 
 
-def body_to_inertial_matrix(q: np.ndarray) -> np.ndarray:
-    """Return the 3x3 rotation matrix of the unit scalar-last quaternion q (body -> inertial for a body->inertial q)."""
-    x, y, z, w = (float(c) for c in q)
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
 def body_to_inertial_matrices(q: np.ndarray) -> np.ndarray:
-    """``body_to_inertial_matrix`` of each row of an (N, 4) array of unit quaternions: shape (N, 3, 3)."""
+    """The rotation matrix of each row of an (N, 4) array of unit scalar-last quaternions: shape (N, 3, 3) (body ->
+    inertial for body->inertial quaternions)."""
     x, y, z, w = (np.asarray(q, dtype=float)[:, k] for k in range(4))
     return np.stack([
         np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
@@ -63,7 +52,7 @@ def body_to_inertial_matrices(q: np.ndarray) -> np.ndarray:
 
 def quaternion_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Return v rotated by the unit scalar-last quaternion q (body vector -> inertial vector for a body->inertial q)."""
-    return body_to_inertial_matrix(q) @ np.asarray(v, dtype=float)
+    return body_to_inertial_matrices(np.asarray(q, dtype=float)[None, :])[0] @ np.asarray(v, dtype=float)
 
 
 def pyramid_axes_body(elevation_deg: float) -> np.ndarray:

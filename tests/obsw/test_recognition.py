@@ -10,7 +10,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from obsw.config import RecognitionConfig
-from obsw.recognition import TrajectoryRecognizer, measured_theta_rad
+from obsw.recognition import TrajectoryRecognizer, measured_theta_rad, predicted_theta
 from obsw.trajectory import NominalTrajectory
 
 NOMINAL = NominalTrajectory(
@@ -261,12 +261,13 @@ def test_the_predicted_angle_and_its_sigma_follow_the_estimate_and_its_covarianc
     t_ca, d_km, cov = rec.continuous()
     est = NOMINAL.with_ca(t_ca, d_km)
     for t in (800.0, 950.0, 995.0, 1010.0):
-        theta, sigma = rec.predicted_theta(t)
+        theta, sigma = predicted_theta(t_ca, d_km, cov, NOMINAL.speed_m_s, t)
         assert theta == pytest.approx(float(est.theta_rad(t)), abs=1e-12)
         h = 1e-4  # s and km
 
-        def theta(dt: float, dd: float) -> float:
+        def theta_at(dt: float, dd: float) -> float:
             return float(NOMINAL.with_ca(t_ca + dt, d_km + dd).theta_rad(t))  # noqa: B023
 
-        jac = np.array([(theta(h, 0.0) - theta(-h, 0.0)) / (2 * h), (theta(0.0, h) - theta(0.0, -h)) / (2 * h)])
+        jac = np.array([(theta_at(h, 0.0) - theta_at(-h, 0.0)) / (2 * h),
+                        (theta_at(0.0, h) - theta_at(0.0, -h)) / (2 * h)])
         assert sigma == pytest.approx(float(np.sqrt(jac @ cov @ jac)), rel=1e-5)
