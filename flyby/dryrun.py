@@ -272,6 +272,8 @@ def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None,
 
     kernels.warm_up()  # loaded once here (0.4 s a process from Numba's cache), not in each worker forked from here
     attitude_rk4.warm_up()
+    if sc.ground.upload_bad_pixel_map:
+        compose.ground_bad_pixel_map(sc)  # the cases' one calibration, cached here before the workers fork
     with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
         return list(pool.map(_rehearse, todo))
 

@@ -102,7 +102,8 @@ class AttitudeEstimator:
     @property
     def bias_sigma_rad_s(self) -> float:
         """One-sigma gyro bias uncertainty of the worst axis, rad/s."""
-        return float(math.sqrt(max(float(np.max(np.diag(self.P)[3:])), 0.0)))
+        p = self.P
+        return math.sqrt(max(float(p[3, 3]), float(p[4, 4]), float(p[5, 5]), 0.0))
 
     @property
     def bias_known(self) -> bool:
@@ -112,7 +113,8 @@ class AttitudeEstimator:
     @property
     def attitude_sigma_rad(self) -> float:
         """One-sigma attitude uncertainty of the worst axis, rad."""
-        return float(math.sqrt(max(float(np.max(np.diag(self.P)[:3])), 0.0)))
+        p = self.P
+        return math.sqrt(max(float(p[0, 0]), float(p[1, 1]), float(p[2, 2]), 0.0))
 
     def propagate(self, gyro_rad_s: NDArray[np.float64], dt_s: float) -> None:
         """Advance the attitude by the gyro rate less the bias over ``dt_s``, and its error covariance."""

@@ -544,8 +544,8 @@ class FlightSoftware:
         P = pus.Parameter
         ex = self.executive
         values: dict[pus.Parameter, float | None] = {
-            P.MODE: float(self.modes.mode), P.BODY_RATE: float(np.linalg.norm(self._omega)),
-            P.GYRO_BIAS: float(np.linalg.norm(self._bias)) if self.attitude.bias_known else None,
+            P.MODE: float(self.modes.mode), P.BODY_RATE: math.sqrt(float(self._omega.dot(self._omega))),
+            P.GYRO_BIAS: math.sqrt(float(self._bias.dot(self._bias))) if self.attitude.bias_known else None,
             P.ATTITUDE_SIGMA: self._attitude_sigma_rad,
             P.POINTING_ERROR: self.pointing_error_est_rad, P.TASK_OVERRUNS: float(ex.task_overruns),
             P.FRAME_OVERRUNS: float(ex.frame_overruns), P.SKIPPED_RELEASES: float(ex.skipped),

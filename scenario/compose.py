@@ -7,6 +7,8 @@ here, so a node started alone on another host composes exactly what ``flyby run`
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from pydantic import ValidationError
 
@@ -19,6 +21,7 @@ from obsw.software import FlightSoftware
 from scenario.model import Scenario
 from timeline.model import Timeline
 from universe.camera import dark_frame, sensor_defects
+from universe.config import CameraConfig
 from universe.geometry import nominal_ca
 from universe.simulator import Universe
 
@@ -57,11 +60,18 @@ def ground_bad_pixel_map(scenario: Scenario) -> tuple[pus.LoadBadPixelMap, int]:
     warm pixels that matter at that exposure; and the sensor's dead pixels and columns, which read the bias in a dark
     frame and are known from flat fields (its fixed maps). The map is one telecommand: when the calibration finds
     more than fits in one packet, it keeps the dead pixels, then the brightest."""
-    cam = scenario.universe.camera
-    dark = dark_frame(cam, scenario.obsw.camera.exposure_s, rng_streams(scenario.seed)["dark_frame"]).reshape(-1)
+    return _calibration(scenario.universe.camera, scenario.obsw.camera.exposure_s, scenario.seed,
+                        scenario.ground.bad_pixel_k_sigma, scenario.ground.apid)
+
+
+@lru_cache(maxsize=4)  # the cases of a dry run share one camera: its dark frame is rendered once
+def _calibration(cam: CameraConfig, exposure_s: float, seed: int, k_sigma: float,
+                 apid: int) -> tuple[pus.LoadBadPixelMap, int]:
+    """``ground_bad_pixel_map`` of the values it depends on."""
+    dark = dark_frame(cam, exposure_s, rng_streams(seed)["dark_frame"]).reshape(-1)
     median = float(np.median(dark))
     sigma = 1.4826 * float(np.median(np.abs(dark - median)))
-    bright = np.flatnonzero(dark > median + scenario.ground.bad_pixel_k_sigma * max(sigma, 0.5))
+    bright = np.flatnonzero(dark > median + k_sigma * max(sigma, 0.5))
     defects = sensor_defects(cam)
     columns = {int(c) for c in defects.dead_columns}
     dead = np.unique(defects.dead_idx)
@@ -77,7 +87,7 @@ def ground_bad_pixel_map(scenario: Scenario) -> tuple[pus.LoadBadPixelMap, int]:
 
     def fits(n: int) -> bool:
         try:
-            pus.encode_tc(load(n), scenario.ground.apid, 0)
+            pus.encode_tc(load(n), apid, 0)
         except (ValidationError, pus.PacketError):
             return False
         return True

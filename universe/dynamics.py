@@ -191,13 +191,14 @@ class SpacecraftDynamics:
         u_cmd = np.asarray(torque_cmd_nm, dtype=float)
         if u_cmd.shape != (self.n_wheels,):
             raise DynamicsError(f"torque_cmd_nm must have shape ({self.n_wheels},), got {u_cmd.shape}")
-        if not np.all(np.isfinite(u_cmd)):
+        if not np.isfinite(u_cmd).all():
             raise DynamicsError(f"torque_cmd_nm must be finite, got {u_cmd.tolist()}")
         if not dt_s >= 0.0:
             raise DynamicsError(f"dt_s must be >= 0, got {dt_s}")
-        stuck = self._check_wheels(stuck_wheels, "stuck_wheels")
-        failed = self._check_wheels(failed_wheels, "failed_wheels")
-        mode = self._mode(stuck)
+        # no faulted wheels (nearly every period): nothing to check
+        stuck = stuck_wheels if not stuck_wheels else self._check_wheels(stuck_wheels, "stuck_wheels")
+        failed = failed_wheels if not failed_wheels else self._check_wheels(failed_wheels, "failed_wheels")
+        mode = self._mode(frozenset(stuck))
         a = self.wheel_axes_body
         jw = self.rotor_inertia_kgm2
 
@@ -212,14 +213,14 @@ class SpacecraftDynamics:
         motor_on = mode.free.copy()
         for i in failed:
             motor_on[i] = 0.0
-        u_held = np.clip(u_cmd, -self.max_torque_nm, self.max_torque_nm) * motor_on
+        u_held = np.minimum(np.maximum(u_cmd, -self.max_torque_nm), self.max_torque_nm) * motor_on
 
         if dt_s == 0.0:
             n_sub = 0
         else:
             n_sub = max(math.ceil(dt_s / self._max_substep_s - 1e-9), math.ceil(dt_s * self._friction_rate_s / 0.5))
         hs = dt_s / n_sub if n_sub else 0.0
-        x = integrate(np.array([float(c) for c in (*q, *w, *h)]), np.array([float(c) for c in u_held]),
+        x = integrate(np.concatenate((q, w, h)), u_held,
                       mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw, self.max_momentum_nms,
                       self._viscous, self._coulomb, 1.0 / self._smooth, n_sub, hs)
         q, w, h = x[:4], x[4:7], x[7:]

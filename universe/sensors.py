@@ -52,7 +52,8 @@ def quaternion_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 def quaternion_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
     """Return the scalar-last unit quaternion of a rotation vector (axis times angle, rad)."""
-    angle = float(np.linalg.norm(rotvec))
+    rotvec = np.asarray(rotvec, dtype=float)
+    angle = math.sqrt(float(rotvec.dot(rotvec)))  # np.linalg.norm's own formula, without its overhead
     if angle < 1e-12:
         # sin(a/2)/a -> 1/2 as a -> 0.
         return np.array([0.5 * rotvec[0], 0.5 * rotvec[1], 0.5 * rotvec[2], 1.0]) / math.sqrt(1.0 + 0.25 * angle**2)
@@ -138,6 +139,6 @@ class Sensors:
             error = self._st_bias_rad + self._st_sigma_rad * self._rng.standard_normal(3)
             # Errors are small rotations about the tracker (body) axes: R_meas = R_true R(error).
             q = quaternion_multiply(q_true, quaternion_from_rotvec(error))
-            self._st_held = q / np.linalg.norm(q)
+            self._st_held = q / math.sqrt(float(q.dot(q)))
             self._st_slot = slot
         return self._st_held.copy()

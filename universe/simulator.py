@@ -7,6 +7,7 @@ spawned into one independent stream per subsystem, so adding draws to one never 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
@@ -231,7 +232,7 @@ class Universe:
         if frame_requested:
             meta, blob = self._frame(exposure_s or self.cfg.camera.exposure_s)
         # the processor's speed and the camera interface's delay, as the OBSW node's processor model reads them
-        slowdown = float(np.prod([f.magnitude or 1.0 for f in self.faults.active("cpu_overload", self.t_s)]))
+        slowdown = float(math.prod(f.magnitude or 1.0 for f in self.faults.active("cpu_overload", self.t_s)))
         delay = sum(f.magnitude or 0.0 for f in self.faults.active("imaging_latency", self.t_s)) if meta else 0.0
         return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta,
                            cpu_slowdown=slowdown, imaging_delay_s=delay), blob
