@@ -16,6 +16,7 @@ dictionary. A packet whose layout is no flat sequence overrides ``subservice``, 
 from __future__ import annotations
 
 import math
+import struct
 import types
 import typing
 from collections.abc import Mapping
@@ -27,7 +28,7 @@ from pydantic.fields import FieldInfo
 
 from contracts.model import Frozen
 from contracts.packet_errors import BadArgument
-from contracts.wire import UINT8, CountedList, Number, Padded, Reader, Vector, WireType
+from contracts.wire import UINT8, CountedList, EnumCode, Number, Padded, Reader, Vector, WireType
 
 Kind = Literal["TC", "TM"]
 _UNSET: Any = ...
@@ -209,9 +210,149 @@ def built(cls: type[Frozen], kind: str, **fields: Any) -> Any:
         raise BadArgument(f"{kind}.{loc}" if loc else kind, f"{err['msg']} (got {err.get('input')!r})") from None
 
 
+# A layout of numbers only (scalars, enumeration codes, vectors, padded arrays, constants, validity flags kept in
+# place, counts) has one size: it is read and written with one struct, the items' checks made on the values after.
+# Anything the fast path does not take as it is (a short packet, a failed check, a value struct refuses) goes the
+# item-by-item way below, which names the field at fault: both ways give the same octets and values.
+_SCALAR, _ENUM, _VECTOR, _PADDED, _CONSTANT, _VALIDITY, _COUNT = range(7)
+
+
+@dataclass(frozen=True)
+class _FixedPlan:
+    """One struct for a whole layout: per item, what it is, where its values start and how many it has."""
+
+    codec: struct.Struct
+    steps: tuple[tuple[Item, int, int, int, float], ...]  # item, kind, first value, values, fill if absent
+    mask: int  # every validity bit the layout declares
+    counted: str | None  # the padded array the count counts
+    layout: tuple[Item, ...]  # kept, so the id keying the plan cache is never reused
+
+
+_PLANS: dict[tuple[int, tuple[str, ...]], _FixedPlan | None] = {}
+
+
+def _fixed_plan(layout: tuple[Item, ...], left_out: tuple[str, ...]) -> _FixedPlan | None:
+    """The layout as one struct, or None when it has an item of variable size."""
+    key = (id(layout), left_out)
+    if key in _PLANS:
+        return _PLANS[key]
+    fmt, steps, n, fill = [], [], 0, math.nan
+    counted = next((i.name for i in layout if isinstance(i.wire, Padded)), None)
+    plan: _FixedPlan | None = None
+    for it in layout:
+        if it.name in left_out:
+            continue
+        w, x = it.wire, it.extra
+        if isinstance(x, Validity):
+            if x.omit:
+                break
+            kind, f, k, fill = _VALIDITY, "B", 1, x.fill
+        elif isinstance(x, Constant | Count):
+            kind, f, k = (_CONSTANT if isinstance(x, Constant) else _COUNT), x.wire.fmt, 1
+        elif isinstance(w, Number):
+            kind, f, k = _SCALAR, w.fmt, 1
+        elif isinstance(w, EnumCode):
+            kind, f, k = _ENUM, w.wire.fmt, 1
+        elif isinstance(w, Vector | Padded) and isinstance(w.element, Number):
+            k = w.n if isinstance(w, Vector) else w.slots
+            kind, f = (_VECTOR if isinstance(w, Vector) else _PADDED), w.element.fmt * k
+        else:
+            break
+        fmt.append(f)
+        steps.append((it, kind, n, k, fill))
+        n += k
+    else:
+        plan = _FixedPlan(struct.Struct(">" + "".join(fmt)), tuple(steps),
+                          sum(1 << b for b in {it.bit for it in layout if it.bit is not None}), counted, layout)
+    _PLANS[key] = plan
+    return plan
+
+
+def _encode_fixed(plan: _FixedPlan, value: Any, flags: int) -> bytes | None:
+    """The octets of ``value`` in one struct, or None for the item-by-item way."""
+    flat: list[Any] = []
+    for it, kind, _, k, fill in plan.steps:
+        x = it.extra
+        if kind == _CONSTANT:
+            flat.append(x.value)  # type: ignore[union-attr]
+        elif kind == _VALIDITY:
+            flat.append(flags)
+        elif kind == _COUNT:
+            if plan.counted is None:
+                return None
+            flat.append(len(getattr(value, plan.counted)))
+        else:
+            v = getattr(value, it.name)
+            if v is None:
+                v = it.wire.filler(fill)
+            if kind == _SCALAR:
+                flat.append(v)
+            elif kind == _ENUM:
+                flat.append(int(v))
+            elif kind == _VECTOR:
+                if len(v) != k:
+                    return None
+                flat.extend(v)
+            else:
+                if len(v) > k:
+                    return None
+                flat.extend(v)
+                flat.extend((it.wire.element.filler(0.0),) * (k - len(v)))  # type: ignore[attr-defined]
+    try:
+        return plan.codec.pack(*flat)
+    except (struct.error, TypeError, ValueError, OverflowError):
+        return None
+
+
+def _decode_fixed(plan: _FixedPlan, r: Reader) -> dict[str, Any] | None:
+    """The field values read in one struct, or None (nothing consumed) for the item-by-item way."""
+    end = r.pos + plan.codec.size
+    if end > len(r.data):
+        return None
+    raw = plan.codec.unpack_from(r.data, r.pos)
+    values: dict[str, Any] = {}
+    flags = used = 0
+    for it, kind, i, k, _ in plan.steps:
+        x = it.extra
+        if kind == _CONSTANT:
+            if raw[i] != x.value:  # type: ignore[union-attr]
+                return None
+            continue
+        if kind == _VALIDITY:
+            flags = raw[i]
+            if flags & ~plan.mask:
+                return None
+            continue
+        if kind == _COUNT:
+            used = raw[i]
+            if not x.low <= used <= x.high:  # type: ignore[union-attr]
+                return None
+            continue
+        if kind == _SCALAR:
+            v = raw[i]
+        elif kind == _ENUM:
+            enum = it.wire.enum  # type: ignore[attr-defined]
+            if raw[i] not in enum._value2member_map_:
+                return None
+            v = enum(raw[i])
+        elif kind == _VECTOR:
+            v = raw[i:i + k]
+        else:
+            v = raw[i:i + min(used, k)]
+        values[it.name] = v if it.bit is None or flags >> it.bit & 1 else None
+    r.pos = end
+    return values
+
+
 def encode_items(layout: tuple[Item, ...], value: Any, left_out: tuple[str, ...] = ()) -> bytes:
     """The octets of ``value`` laid out by ``layout``, without the fields ``left_out``."""
     flags = 0
+    for it in layout:
+        if it.bit is not None and getattr(value, it.name) is not None:
+            flags |= 1 << it.bit
+    plan = _fixed_plan(layout, left_out)
+    if plan is not None and (octets := _encode_fixed(plan, value, flags)) is not None:
+        return octets
     for it in layout:
         if it.bit is not None and getattr(value, it.name) is not None:
             flags |= 1 << it.bit
@@ -243,6 +384,9 @@ def encode_items(layout: tuple[Item, ...], value: Any, left_out: tuple[str, ...]
 def decode_items(layout: tuple[Item, ...], r: Reader, prefix: str = "",
                  left_out: tuple[str, ...] = ()) -> dict[str, Any]:
     """The field values read by ``layout`` (naming each field ``prefix + name`` in errors)."""
+    plan = _fixed_plan(layout, left_out)
+    if plan is not None and (fast := _decode_fixed(plan, r)) is not None:
+        return fast
     values: dict[str, Any] = {}
     flags = 0
     omit = False
