@@ -26,6 +26,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from enum import IntEnum
+from typing import NamedTuple
 
 from contracts.task import Task
 from obsw.errors import InternalFault
@@ -90,8 +91,7 @@ class TaskSpec:
     periodic: bool = True
 
 
-@dataclass(frozen=True, slots=True)
-class Run:
+class Run(NamedTuple):  # a named tuple: eleven are made every minor frame, at a fifth of a frozen dataclass's cost
     """One release of a task in a minor frame, with its modelled times (OBT s)."""
 
     task: Task
