@@ -219,13 +219,15 @@ class TrajectoryRecognizer:
         """Minimise |(theta - pred) / sigma|^2 + |x|^2 over the free parameters, with step halving."""
         sigma = self.cfg.angle_noise_rad
 
-        def cost(p: NDArray) -> float:
-            r = (theta - self._predict(p, origin, scale, times)) / sigma
+        def residual(p: NDArray) -> NDArray:
+            return (theta - self._predict(p, origin, scale, times)) / sigma
+
+        def cost(r: NDArray, p: NDArray) -> float:
             return float(r @ r + p[free] @ p[free])
 
-        current = cost(x)
+        r = residual(x)  # the residual at x, kept from the accepted trial: computed once per point
+        current = cost(r, x)
         for _ in range(self.cfg.max_iterations):
-            r = (theta - self._predict(x, origin, scale, times)) / sigma
             jac = self._jacobian(x, origin, scale, times)[:, free] / sigma
             step = np.zeros(2)
             step[free] = np.linalg.solve(jac.T @ jac + np.eye(int(free.sum())), jac.T @ r - x[free])
@@ -233,12 +235,14 @@ class TrajectoryRecognizer:
             while True:
                 trial = x + length * step
                 # a candidate distance must stay positive: theta is undefined through d = 0
-                if origin[1] + trial[1] * scale[1] > 0 and (new := cost(trial)) <= current:
-                    break
+                if origin[1] + trial[1] * scale[1] > 0:
+                    r_trial = residual(trial)
+                    if (new := cost(r_trial, trial)) <= current:
+                        break
                 length *= 0.5
                 if length < 1e-6:
                     return x
-            x, improvement, current = trial, current - new, new
+            x, r, improvement, current = trial, r_trial, current - new, new
             if improvement <= 1e-12 * max(current, 1.0) or float(np.max(np.abs(length * step))) < 1e-10:
                 break
         return x
