@@ -142,6 +142,9 @@ class FlightSoftware:
         self.camera = cfg.camera
         w = cfg.wheels
         self.axes = wheel_axes_body(w.layout, w.pyramid_angle_deg)
+        # each wheel's monitored parameters, looked up once (service 12 samples them every period)
+        self._wheel_parameters = tuple((pus.Parameter[f"WHEEL_MOMENTUM_{k}"], pus.Parameter[f"WHEEL_SPEED_{k}"])
+                                       for k in range(self.axes.shape[1]))
         self.max_torque_nm = w.max_torque_nm
         self.max_momentum_nms = w.max_momentum_nms
         self.wheel_inertia_kgm2 = w.inertia_kgm2
@@ -553,9 +556,9 @@ class FlightSoftware:
             P.FRAMES_DISCARDED: float(self.frame_watch.discarded), P.MEASUREMENTS_REJECTED: float(self.lock_gate.rejected),
             P.EXPOSURE_TO_CENTROID: self._exposure_to_centroid_s,
         }
-        for k in range(self.axes.shape[1]):
-            values[P[f"WHEEL_MOMENTUM_{k}"]] = float(self._wheel_h[k])
-            values[P[f"WHEEL_SPEED_{k}"]] = float(self._wheel_speed[k])
+        for (momentum, speed), h, rate in zip(self._wheel_parameters, self._wheel_h.tolist(),
+                                              self._wheel_speed.tolist(), strict=True):
+            values[momentum], values[speed] = h, rate
         return values
 
     def _shift_time(self, step_s: float) -> int:
