@@ -38,36 +38,6 @@ DEG_SQRT_H_RAD_SQRT_S = math.pi / 180.0 / 60.0  # 1 deg/sqrt(h) = 1/60 deg/sqrt(
 _IDENTITY_Q = np.array([0.0, 0.0, 0.0, 1.0])
 
 
-def quaternion_product(p: NDArray[np.float64], q: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Hamilton product ``p (x) q`` of scalar-last quaternions (rotate by ``q``, then by ``p``)."""
-    px, py, pz, pw = p
-    qx, qy, qz, qw = q
-    return np.array([pw * qx + px * qw + py * qz - pz * qy, pw * qy - px * qz + py * qw + pz * qx,
-                     pw * qz + px * qy - py * qx + pz * qw, pw * qw - px * qx - py * qy - pz * qz])
-
-
-def quaternion_of_rotvec(v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Unit quaternion (scalar-last) of a rotation vector, rad."""
-    angle = float(math.sqrt(v @ v))
-    if angle < 1e-12:
-        q = np.array([0.5 * v[0], 0.5 * v[1], 0.5 * v[2], 1.0])
-        return q / math.sqrt(q @ q)
-    s = math.sin(0.5 * angle) / angle
-    return np.array([s * v[0], s * v[1], s * v[2], math.cos(0.5 * angle)])
-
-
-def rotvec_between(q_from: NDArray[np.float64], q_to: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation vector (body axes of ``q_from``, rad) of ``conj(q_from) (x) q_to``, the shorter way round."""
-    conj = np.array([-q_from[0], -q_from[1], -q_from[2], q_from[3]])
-    e = quaternion_product(conj, q_to)
-    if e[3] < 0:
-        e = -e
-    s = float(math.sqrt(e[:3] @ e[:3]))
-    if s < 1e-12:
-        return 2.0 * e[:3]
-    return e[:3] * (2.0 * math.atan2(s, e[3]) / s)
-
-
 @dataclass(frozen=True, slots=True)
 class AttitudeEstimate:
     """What the estimator gives the control each period."""
@@ -120,9 +90,9 @@ class AttitudeEstimator:
         """Advance the attitude by the gyro rate less the bias over ``dt_s``, and its error covariance."""
         w = np.asarray(gyro_rad_s, dtype=float) - self.bias
         if self.q is not None:
-            q = quaternion_product(self.q, quaternion_of_rotvec(w * dt_s))
-            self.q = q / math.sqrt(q @ q)
-        self.P = mekf_kernels.predict(self.P, w, float(dt_s), self.sigma_v, self.sigma_u)
+            self.q, self.P = mekf_kernels.propagate(self.q, self.P, w, float(dt_s), self.sigma_v, self.sigma_u)
+        else:
+            self.P = mekf_kernels.predict(self.P, w, float(dt_s), self.sigma_v, self.sigma_u)
 
     def update(self, star_tracker_q: NDArray[np.float64]) -> NDArray[np.float64]:
         """Take one star tracker solution; return its innovation (rotation vector, body, rad)."""
@@ -131,11 +101,8 @@ class AttitudeEstimator:
         if self.q is None:  # the first solution is the attitude
             self.q = q_meas
             return np.zeros(3)
-        z = rotvec_between(self.q, q_meas)
-        dx, self.P = mekf_kernels.update(self.P, self.R, z)
-        q = quaternion_product(self.q, quaternion_of_rotvec(dx[:3]))
-        self.q = q / math.sqrt(q @ q)
-        self.bias = self.bias + dx[3:]
+        # the quaternion steps compiled with the covariance's (Hamilton product, exp of the rotation vector)
+        self.q, self.bias, self.P, z = mekf_kernels.correct(self.q, self.bias, self.P, self.R, q_meas)
         self.updates += 1
         return z
 

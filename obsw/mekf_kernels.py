@@ -1,5 +1,5 @@
-"""Compiled covariance steps of the attitude MEKF (Numba): the prediction and the star tracker update of its 6x6
-error covariance, one call each per control period.
+"""Compiled steps of the attitude MEKF (Numba): the prediction and the star tracker update of its 6x6 error
+covariance, with the quaternion's own steps (``propagate``, ``correct``), one call each per control period.
 
 The equations are ``obsw.attitude``'s (its module docstring): the discrete transition ``Phi`` and process noise
 ``Q_d`` of ``x = [dtheta, db]`` under ``dtheta' = -[w x] dtheta - db - n_v, db' = n_u``, and the Kalman update with
@@ -92,7 +92,69 @@ def update(p: np.ndarray, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.
     return dx, out
 
 
+@njit(cache=True, nogil=True)
+def product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product ``p (x) q`` of scalar-last quaternions (rotate by ``q``, then by ``p``)."""
+    px, py, pz, pw = p[0], p[1], p[2], p[3]
+    qx, qy, qz, qw = q[0], q[1], q[2], q[3]
+    out = np.empty(4)
+    out[0] = pw * qx + px * qw + py * qz - pz * qy
+    out[1] = pw * qy - px * qz + py * qw + pz * qx
+    out[2] = pw * qz + px * qy - py * qx + pz * qw
+    out[3] = pw * qw - px * qx - py * qy - pz * qz
+    return out
+
+
+@njit(cache=True, nogil=True)
+def of_rotvec(v: np.ndarray) -> np.ndarray:
+    """Unit quaternion (scalar-last) of a rotation vector, rad."""
+    angle = np.sqrt(np.dot(v, v))
+    out = np.empty(4)
+    if angle < 1e-12:
+        out[0], out[1], out[2], out[3] = 0.5 * v[0], 0.5 * v[1], 0.5 * v[2], 1.0
+        return out / np.sqrt(np.dot(out, out))
+    s = np.sin(0.5 * angle) / angle
+    out[0], out[1], out[2], out[3] = s * v[0], s * v[1], s * v[2], np.cos(0.5 * angle)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def rotvec_between(q_from: np.ndarray, q_to: np.ndarray) -> np.ndarray:
+    """Rotation vector (body axes of ``q_from``, rad) of ``conj(q_from) (x) q_to``, the shorter way round."""
+    conj = np.empty(4)
+    conj[0], conj[1], conj[2], conj[3] = -q_from[0], -q_from[1], -q_from[2], q_from[3]
+    e = product(conj, q_to)
+    if e[3] < 0:
+        e = -e
+    v = e[:3].copy()
+    s = np.sqrt(np.dot(v, v))
+    if s < 1e-12:
+        return 2.0 * v
+    return v * (2.0 * np.arctan2(s, e[3]) / s)
+
+
+@njit(cache=True, nogil=True)
+def propagate(q: np.ndarray, p: np.ndarray, w: np.ndarray, dt_s: float, sigma_v: float,
+              sigma_u: float) -> tuple[np.ndarray, np.ndarray]:
+    """The attitude ``q`` turned by ``w dt_s`` (renormalised) and its error covariance carried (``predict``)."""
+    out = product(q, of_rotvec(w * dt_s))
+    return out / np.sqrt(np.dot(out, out)), predict(p, w, dt_s, sigma_v, sigma_u)
+
+
+@njit(cache=True, nogil=True)
+def correct(q: np.ndarray, bias: np.ndarray, p: np.ndarray, r: np.ndarray,
+            q_meas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A star tracker solution ``q_meas`` (unit) taken: the attitude, bias and covariance after the update, and the
+    innovation (rotation vector, body, rad)."""
+    z = rotvec_between(q, q_meas)
+    dx, p_new = update(p, r, z)
+    out = product(q, of_rotvec(dx[:3].copy()))
+    return out / np.sqrt(np.dot(out, out)), bias + dx[3:], p_new, z
+
+
 def warm_up() -> None:
     """Compile the kernels now (or load them from the cache): seconds on the first run after an install."""
     p = np.eye(6)
-    update(predict(p, np.zeros(3), 0.1, 1e-5, 1e-6), np.eye(3), np.zeros(3))
+    q = np.array([0.0, 0.0, 0.0, 1.0])
+    q, p = propagate(q, p, np.zeros(3), 0.1, 1e-5, 1e-6)
+    correct(q, np.zeros(3), p, np.eye(3), q)

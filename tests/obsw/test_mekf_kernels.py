@@ -1,4 +1,5 @@
-"""The MEKF's compiled covariance steps against filterpy's generic Kalman filter fed the textbook matrices."""
+"""The MEKF's compiled steps: the covariance's against filterpy's generic Kalman filter fed the textbook matrices,
+the quaternion's against SciPy's rotations."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from obsw import mekf_kernels
 
@@ -62,3 +64,33 @@ def test_update_is_the_joseph_form_kalman_update(seed: int, z: np.ndarray) -> No
     np.testing.assert_allclose(dx, kf.x.ravel(), rtol=1e-9, atol=1e-18)
     np.testing.assert_allclose(got, kf.P, rtol=1e-9, atol=1e-13 * np.max(np.abs(kf.P)))
     np.testing.assert_allclose(got, got.T, rtol=0, atol=1e-12 * np.max(np.abs(got)))  # symmetric to rounding
+
+
+unit_quaternions = st.lists(st.floats(-1, 1), min_size=4, max_size=4).map(np.array).filter(
+    lambda q: np.linalg.norm(q) > 0.1).map(lambda q: q / np.linalg.norm(q))
+rotation_vectors = st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3).map(np.array)
+
+
+@settings(max_examples=200, deadline=None)
+@given(p=unit_quaternions, q=unit_quaternions, v=rotation_vectors)
+def test_quaternion_steps_are_scipys_rotations(p: np.ndarray, q: np.ndarray, v: np.ndarray) -> None:
+    """The compiled quaternion steps equal SciPy's Rotation: the product composes (q first), the rotation vector's
+    quaternion is from_rotvec's, and the rotation between two attitudes is the shorter one, in the first's axes."""
+    rp, rq = Rotation.from_quat(p), Rotation.from_quat(q)
+    assert Rotation.from_quat(mekf_kernels.product(p, q)).approx_equal(rp * rq, atol=1e-12)
+    assert Rotation.from_quat(mekf_kernels.of_rotvec(v)).approx_equal(Rotation.from_rotvec(v), atol=1e-12)
+    between = mekf_kernels.rotvec_between(p, q)
+    assert np.linalg.norm(between) <= np.pi + 1e-12
+    assert Rotation.from_rotvec(between).approx_equal(rp.inv() * rq, atol=1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(q=unit_quaternions, w=rotation_vectors, dt=st.floats(0.01, 1.0), seed=st.integers(0, 2**16))
+def test_propagation_turns_the_attitude_by_the_rate(q: np.ndarray, w: np.ndarray, dt: float, seed: int) -> None:
+    """``propagate`` turns the attitude by ``w dt`` about the body axes, keeps it a unit quaternion, and carries the
+    covariance as ``predict`` does."""
+    p = _covariance(seed)
+    q_new, p_new = mekf_kernels.propagate(q, p, w, dt, 1e-5, 1e-6)
+    assert abs(np.linalg.norm(q_new) - 1.0) < 1e-12
+    assert Rotation.from_quat(q_new).approx_equal(Rotation.from_quat(q) * Rotation.from_rotvec(w * dt), atol=1e-12)
+    assert np.array_equal(p_new, mekf_kernels.predict(p, w, dt, 1e-5, 1e-6))
