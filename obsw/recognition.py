@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from obsw import recognition_kernels
 from obsw.config import RecognitionConfig
 from obsw.trajectory import NominalTrajectory
 
@@ -172,77 +173,10 @@ class TrajectoryRecognizer:
         prior_cov = np.diag([sig_t**2, (sig_d_m / 1e3) ** 2])
         if not self._meas_t:
             return nom.ca_time_obt_s, nom.ca_distance_km, prior_cov
-        times = np.asarray(self._meas_t)
-        theta = np.asarray(self._meas_theta)
-        free = np.array([sig_t > 0, sig_d_m > 0])
-        # work in sigmas of the prior (u for time, w for distance): well scaled, prior term is |x|^2
-        scale = np.array([sig_t if free[0] else 1.0, sig_d_m if free[1] else 1.0])
-        origin = np.array([nom.ca_time_obt_s, nom.ca_distance_m])
         t0, d0_km, _ = self.best_grid()
-        x = (np.array([t0, d0_km * 1e3]) - origin) / scale
-        x[~free] = 0.0
-        # first with the grid's wide cap (robust start), then with the tight noise gate around that solution
-        tight = self.cfg.outlier_gate_sigma * self.cfg.angle_noise_rad
-        for gate in (self.cfg.residual_cap_rad, tight):
-            inliers = np.zeros(times.size, dtype=bool)
-            for _round in range(5):
-                new = np.abs(theta - self._predict(x, origin, scale, times)) <= gate
-                if not new.any() or np.array_equal(new, inliers):
-                    break
-                inliers = new
-                x = self._gauss_newton(x, origin, scale, free, times[inliers], theta[inliers])
-        # the information is that of the measurements the final estimate explains (none: the prior alone)
-        inliers = np.abs(theta - self._predict(x, origin, scale, times)) <= tight
-        jac = self._jacobian(x, origin, scale, times[inliers]) / self.cfg.angle_noise_rad
-        info = jac[:, free].T @ jac[:, free] + np.eye(int(free.sum()))
-        cov_scaled = np.zeros((2, 2))
-        cov_scaled[np.ix_(free, free)] = np.linalg.inv(info)
-        to_units = np.diag([scale[0], scale[1] / 1e3])  # s and km
-        t, d_m = origin + x * scale
-        return float(t), float(d_m / 1e3), to_units @ cov_scaled @ to_units
-
-    def _predict(self, x: NDArray, origin: NDArray, scale: NDArray, times: NDArray) -> NDArray:
-        t_ca, d_m = origin + x * scale
-        return _theta(times, t_ca, d_m, self.nominal.speed_m_s)
-
-    def _jacobian(self, x: NDArray, origin: NDArray, scale: NDArray, times: NDArray) -> NDArray:
-        """d theta / d (u, w): d theta/d t_ca = -v d / r^2, d theta/d d = -v tau / r^2, r^2 = d^2 + v^2 tau^2."""
-        t_ca, d_m = origin + x * scale
-        v = self.nominal.speed_m_s
-        tau = times - t_ca
-        r2 = d_m * d_m + (v * tau) ** 2
-        return np.column_stack([-v * d_m / r2 * scale[0], -v * tau / r2 * scale[1]])
-
-    def _gauss_newton(
-        self, x: NDArray, origin: NDArray, scale: NDArray, free: NDArray, times: NDArray, theta: NDArray
-    ) -> NDArray:
-        """Minimise |(theta - pred) / sigma|^2 + |x|^2 over the free parameters, with step halving."""
-        sigma = self.cfg.angle_noise_rad
-
-        def residual(p: NDArray) -> NDArray:
-            return (theta - self._predict(p, origin, scale, times)) / sigma
-
-        def cost(r: NDArray, p: NDArray) -> float:
-            return float(r @ r + p[free] @ p[free])
-
-        r = residual(x)  # the residual at x, kept from the accepted trial: computed once per point
-        current = cost(r, x)
-        for _ in range(self.cfg.max_iterations):
-            jac = self._jacobian(x, origin, scale, times)[:, free] / sigma
-            step = np.zeros(2)
-            step[free] = np.linalg.solve(jac.T @ jac + np.eye(int(free.sum())), jac.T @ r - x[free])
-            length = 1.0
-            while True:
-                trial = x + length * step
-                # a candidate distance must stay positive: theta is undefined through d = 0
-                if origin[1] + trial[1] * scale[1] > 0:
-                    r_trial = residual(trial)
-                    if (new := cost(r_trial, trial)) <= current:
-                        break
-                length *= 0.5
-                if length < 1e-6:
-                    return x
-            x, r, improvement, current = trial, r_trial, current - new, new
-            if improvement <= 1e-12 * max(current, 1.0) or float(np.max(np.abs(length * step))) < 1e-10:
-                break
-        return x
+        c = self.cfg
+        t, d_m, cov = recognition_kernels.solve(
+            np.asarray(self._meas_t), np.asarray(self._meas_theta), nom.ca_time_obt_s, nom.ca_distance_m, sig_t,
+            sig_d_m, t0, d0_km * 1e3, nom.speed_m_s, c.angle_noise_rad, c.residual_cap_rad,
+            c.outlier_gate_sigma * c.angle_noise_rad, c.max_iterations)
+        return float(t), float(d_m / 1e3), cov * np.array([[1.0, 1e-3], [1e-3, 1e-6]])  # s and km

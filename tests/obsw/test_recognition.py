@@ -9,9 +9,11 @@ from hypothesis import strategies as st
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from obsw import recognition_kernels
 from obsw.config import RecognitionConfig
 from obsw.recognition import TrajectoryRecognizer, measured_theta_rad, predicted_theta
 from obsw.trajectory import NominalTrajectory
+from tests.obsw.recognition_reference import reference_solve
 
 NOMINAL = NominalTrajectory(
     ca_time_obt_s=1000.0,
@@ -271,3 +273,29 @@ def test_the_predicted_angle_and_its_sigma_follow_the_estimate_and_its_covarianc
         jac = np.array([(theta_at(h, 0.0) - theta_at(-h, 0.0)) / (2 * h),
                         (theta_at(0.0, h) - theta_at(0.0, -h)) / (2 * h)])
         assert sigma == pytest.approx(float(np.sqrt(jac @ cov @ jac)), rel=1e-5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(dt=st.floats(-30.0, 30.0), dd_km=st.floats(-15.0, 15.0), seed=st.integers(0, 2**16),
+       outliers=st.integers(0, 20), span=st.sampled_from([(-240.0, -30.0), (-240.0, 60.0), (-100.0, -80.0)]),
+       sigmas=st.sampled_from([(10.0, 5.0), (10.0, 0.0), (0.0, 5.0), (3.0, 20.0)]))
+def test_compiled_estimate_equals_the_numpy_reference(dt: float, dd_km: float, seed: int, outliers: int,
+                                                      span: tuple[float, float],
+                                                      sigmas: tuple[float, float]) -> None:
+    """The compiled MAP estimate and covariance equal a plain numpy Gauss-Newton's on the same measurements (noise,
+    outliers beyond the gate, parameters held by a zero prior sigma), to rounding."""
+    nominal = NOMINAL.model_copy(update={"ca_time_sigma_s": sigmas[0], "ca_distance_sigma_km": sigmas[1]})
+    truth = nominal.with_ca(1000.0 + dt, 55.0 + dd_km)
+    rng = np.random.default_rng(seed)
+    times = np.arange(1000.0 + span[0], 1000.0 + span[1], 1.0)
+    theta = truth.theta_rad(times) + rng.normal(0.0, SIGMA, times.size)
+    theta[rng.choice(times.size, size=min(outliers, times.size), replace=False)] += rng.uniform(0.01, 0.2, 1)[0]
+    start = (1000.0 + dt + rng.normal(0, 2.0), (55.0 + dd_km + rng.normal(0, 1.0)) * 1e3)
+    args = (nominal.ca_time_obt_s, nominal.ca_distance_m)
+    t, d, cov = recognition_kernels.solve(times, theta, *args, sigmas[0], sigmas[1] * 1e3, *start, nominal.speed_m_s,
+                                          CFG.angle_noise_rad, CFG.residual_cap_rad,
+                                          CFG.outlier_gate_sigma * CFG.angle_noise_rad, CFG.max_iterations)
+    t_ref, d_ref, cov_ref = reference_solve(times, theta, args, (sigmas[0], sigmas[1] * 1e3), start,
+                                            nominal.speed_m_s, CFG)
+    assert t == pytest.approx(t_ref, abs=1e-6) and d == pytest.approx(d_ref, abs=1e-3)
+    assert np.allclose(cov, cov_ref, rtol=1e-6, atol=1e-12)
