@@ -100,12 +100,15 @@ def basilisk_python(given: str | None) -> tuple[str | None, str]:
     """The interpreter to run Basilisk's loop with (``given``, else this one if it imports Basilisk), or None and
     why not."""
     python = given or sys.executable
-    probe = subprocess.run([python, "-c", "import Basilisk.simulation.spacecraft"], capture_output=True, text=True)
+    try:
+        probe = subprocess.run([python, "-c", "import Basilisk.simulation.spacecraft"], capture_output=True, text=True)
+    except OSError as e:  # no such interpreter
+        return None, f"basilisk: --basilisk-python {python} cannot be run ({e})"
     if probe.returncode == 0:
         return python, ""
     why = (probe.stderr.strip().splitlines() or ["no output"])[-1]
-    return None, (f"basilisk: skipped, Basilisk is not importable by {python} ({why}); install the bench extra "
-                  "(pip install .[bench]) or pass --basilisk-python PATH")
+    return None, (f"basilisk: {'' if given else 'skipped, '}Basilisk is not importable by {python} ({why}); install "
+                  "the bench extra (pip install .[bench]) or pass --basilisk-python PATH")
 
 
 def basilisk_config(scenario: Path) -> str:
