@@ -1,7 +1,7 @@
 """Benchmark of one run's speed (issue 13) and of the timeline dry run, against another build of the code measured in
 the same session.
 
-Run: .venv/bin/python bench/speed.py [--rounds N] [--reference-code DIR] [--scenario PATH]
+Run: .venv/bin/python bench/speed.py [--rounds N] [--reference-code DIR] [--scenario PATH] [--basilisk-python PATH]
 
 Every item runs in a child process of its own (so its peak resident memory is its own, read from ``wait4``), in
 rounds, the builds taking turns within each round (so a slow spell of this shared machine hits them alike):
@@ -10,10 +10,13 @@ rounds, the builds taking turns within each round (so a slow spell of this share
 - ``flyby run`` with three processes over Zenoh, image in the loop: start to report written, and its loop (the
   universe log's "peers up" to "run complete"), with each node's processor time and peak RSS from its log;
 - the dry run of configs/timelines/flyby-imaging.yaml on the scenario (five cases, two at a time), as
-  ``flyby ground --dry-run`` runs it.
+  ``flyby ground --dry-run`` runs it;
+- Basilisk's equivalent closed loop (bench/basilisk_loop.py: the scenario's hub and wheels at its integration
+  substep, a Python PD law every control period, no images), printed beside the centroid-level run with the ratio
+  of their real-time factors. It runs in the interpreter given by ``--basilisk-python`` or, by default, in this one
+  if it imports Basilisk (the ``bench`` extra: ``pip install .[bench]``); otherwise it is skipped, said in one line.
 With ``--reference-code DIR`` (a copy of another build, e.g. ``git archive main | tar -x -C DIR``) each item runs
 with that code too and the ratio this build / reference is printed; without it, this build's figures alone.
-Basilisk's closed loop is not run: it is not installed (see the README's speed section).
 The first round is a warm-up (Numba caches of a fresh copy compile there) and is not counted, unless
 ``--no-warm-up``. Processor times (the child's and its children's, ``wait4``) are printed beside wall times: on a
 shared machine they are the steadier figure.
@@ -36,6 +39,7 @@ from time import perf_counter  # the benchmark, not the simulator, reads the clo
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "configs" / "scenarios" / "nominal.yaml"
 TIMELINE = ROOT / "configs" / "timelines" / "flyby-imaging.yaml"
+BASILISK_LOOP = ROOT / "bench" / "basilisk_loop.py"
 
 # the child: one item with the code on its path; prints one JSON line of figures
 _CHILD = r"""
@@ -66,12 +70,12 @@ else:
 _STAMP = re.compile(r"^(\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3}) universe INFO (.*)$", re.M)
 
 
-def _run_child(code: Path, args: list[str], cwd: Path) -> tuple[str, float, float]:
+def _run_child(code: Path, args: list[str], cwd: Path, python: str = sys.executable) -> tuple[str, float, float]:
     """Run ``python args`` with ``code`` first on the path; its output, its peak resident memory (MB) and its
     processor time with its children's (s), both from ``wait4``."""
     env = dict(os.environ, PYTHONPATH=str(code))
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        p = subprocess.Popen([sys.executable, *args], cwd=cwd, env=env, stdout=out, stderr=err)
+        p = subprocess.Popen([python, *args], cwd=cwd, env=env, stdout=out, stderr=err)
         _, status, usage = os.wait4(p.pid, 0)
         p.returncode = os.waitstatus_to_exitcode(status)
         out.seek(0)
@@ -88,6 +92,36 @@ def in_process(code: Path, item: str, scenario: Path) -> dict[str, float]:
     text, rss, cpu = _run_child(code, ["-c", _CHILD, item, str(scenario), str(TIMELINE)], code)
     got = json.loads(text.strip().splitlines()[-1])
     got["process_cpu_s"] = cpu  # with the imports (and, for the dry run, its worker processes)
+    got["peak_rss_mb"] = rss
+    return got
+
+
+def basilisk_python(given: str | None) -> tuple[str | None, str]:
+    """The interpreter to run Basilisk's loop with (``given``, else this one if it imports Basilisk), or None and
+    why not."""
+    python = given or sys.executable
+    try:
+        probe = subprocess.run([python, "-c", "import Basilisk.simulation.spacecraft"], capture_output=True, text=True)
+    except OSError as e:  # no such interpreter
+        return None, f"basilisk: --basilisk-python {python} cannot be run ({e})"
+    if probe.returncode == 0:
+        return python, ""
+    why = (probe.stderr.strip().splitlines() or ["no output"])[-1]
+    return None, (f"basilisk: {'' if given else 'skipped, '}Basilisk is not importable by {python} ({why}); install "
+                  "the bench extra (pip install .[bench]) or pass --basilisk-python PATH")
+
+
+def basilisk_config(scenario: Path) -> str:
+    """bench/basilisk_loop.py's configuration of ``scenario`` as JSON, read by this build's loader in a child."""
+    text, _, _ = _run_child(ROOT, [str(BASILISK_LOOP), "--print-config", "--scenario", str(scenario)], ROOT)
+    return text.strip().splitlines()[-1]
+
+
+def basilisk(python: str, config: str) -> dict[str, float]:
+    """Basilisk's closed loop of ``config`` run by ``python`` (bench/basilisk_loop.py)."""
+    text, rss, cpu = _run_child(ROOT, [str(BASILISK_LOOP), "--config", config], ROOT, python)
+    got = json.loads(text.strip().splitlines()[-1])
+    got["process_cpu_s"] = cpu  # with Basilisk's imports and set-up
     got["peak_rss_mb"] = rss
     return got
 
@@ -113,6 +147,26 @@ def three_processes(code: Path, scenario: Path, tmp: Path) -> dict[str, float]:
     return got
 
 
+def _print_basilisk(got: dict[tuple[str, str], list[dict[str, float]]], builds: dict[str, Path]) -> None:
+    """Basilisk's real-time factor, and each build's centroid-level one over it (wall and processor time)."""
+    bsk = got[("basilisk", "Basilisk")]
+    wall = statistics.median(r["wall_s"] for r in bsk)
+    cpu = statistics.median(r["loop_cpu_s"] for r in bsk)
+    print(f"basilisk Basilisk: real-time factor {bsk[0]['sim_s'] / wall:.0f}x, "
+          f"{wall / bsk[0]['periods'] * 1e6:.0f} us per control period")
+    for n in builds:
+        if ("centroid", n) not in got:
+            continue
+        mine = got[("centroid", n)]
+        if mine[0]["sim_s"] != bsk[0]["sim_s"]:
+            print(f"basilisk {n}: no ratio, the runs differ in length ({mine[0]['sim_s']} s, {bsk[0]['sim_s']} s)")
+            continue
+        # the same simulated span: the ratio of real-time factors is Basilisk's time over ours
+        print(f"basilisk {n}: centroid-level real-time factor / Basilisk's: "
+              f"{wall / statistics.median(r['wall_s'] for r in mine):.3f} (wall), "
+              f"{cpu / statistics.median(r['loop_cpu_s'] for r in mine):.3f} (processor time of the loops)")
+
+
 def main() -> None:
     """Run every item with each build, ``--rounds`` counted rounds after one warm-up; print medians and ratios."""
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -120,35 +174,55 @@ def main() -> None:
     p.add_argument("--reference-code", type=Path, help="a copy of another build to compare with (e.g. main)")
     p.add_argument("--scenario", type=Path, default=SCENARIO)
     p.add_argument("--no-warm-up", action="store_true", help="count every round (the caches are compiled)")
-    p.add_argument("--skip", nargs="*", default=[], choices=["image", "centroid", "flyby", "dryrun"])
+    p.add_argument("--skip", nargs="*", default=[], choices=["image", "centroid", "basilisk", "flyby", "dryrun"])
+    p.add_argument("--basilisk-python", help="an interpreter that imports Basilisk (bsk), for Basilisk's loop; "
+                   "default: this one, if it does")
     args = p.parse_args()
     builds = {"this build": ROOT}
     if args.reference_code is not None:
         builds["reference"] = args.reference_code.resolve()
-    items = [i for i in ("image", "centroid", "flyby", "dryrun") if i not in args.skip]
+    items = [i for i in ("image", "centroid", "basilisk", "flyby", "dryrun") if i not in args.skip]
+    if "basilisk" in items:
+        bsk_python, why = basilisk_python(args.basilisk_python)
+        if bsk_python is None:
+            if args.basilisk_python:
+                raise SystemExit(why)
+            print(why, flush=True)
+            items.remove("basilisk")
+        else:
+            bsk_config = basilisk_config(args.scenario.resolve())
     got: dict[tuple[str, str], list[dict[str, float]]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for rnd in range(1 if args.no_warm_up else 0, args.rounds + 1):
             for item in items:
-                for name, code in builds.items():
-                    r = three_processes(code, args.scenario.resolve(), Path(tmp)) if item == "flyby" else \
-                        in_process(code, item, args.scenario.resolve())
+                # Basilisk is the reference of every build: it runs once a round
+                for name, code in ({"Basilisk": ROOT} if item == "basilisk" else builds).items():
+                    if item == "basilisk":
+                        r = basilisk(bsk_python, bsk_config)
+                    elif item == "flyby":
+                        r = three_processes(code, args.scenario.resolve(), Path(tmp))
+                    else:
+                        r = in_process(code, item, args.scenario.resolve())
                     print(f"round {rnd}{' (warm-up)' if rnd == 0 else ''}: {item:8s} {name:10s} "
                           + ", ".join(f"{k} {v:.3g}" for k, v in r.items()), flush=True)
                     if rnd:
                         got.setdefault((item, name), []).append(r)
     print(f"\nmedians of {args.rounds} rounds" + (", ratio this build / reference" if len(builds) > 1 else ""))
     for item in items:
-        for key in got[(item, "this build")][0]:
-            if not isinstance(got[(item, "this build")][0][key], (int, float)) or isinstance(
-                    got[(item, "this build")][0][key], bool):
+        names = ["Basilisk"] if item == "basilisk" else list(builds)
+        first = got[(item, names[0])][0]
+        for key in first:
+            if not isinstance(first[key], (int, float)) or isinstance(first[key], bool):
                 continue
-            meds = {n: statistics.median(r[key] for r in got[(item, n)]) for n in builds
+            meds = {n: statistics.median(r[key] for r in got[(item, n)]) for n in names
                     if all(key in r for r in got[(item, n)])}
             line = f"{item:8s} {key:16s} " + "  ".join(f"{n}: {v:9.3f}" for n, v in meds.items())
             if len(meds) == 2 and meds["reference"]:
                 line += f"  ratio {meds['this build'] / meds['reference']:.3f}"
             print(line)
+        if item == "basilisk":
+            _print_basilisk(got, builds)
+            continue
         mine = got[(item, "this build")]
         if item in ("image", "centroid"):
             sim = mine[0]["sim_s"]
