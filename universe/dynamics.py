@@ -139,12 +139,13 @@ class SpacecraftDynamics:
 
     def _check_state(self, state: AttitudeState) -> None:
         """Raise DynamicsError if the state's arrays have the wrong shapes."""
-        if np.shape(state.q) != (4,) or np.shape(state.omega_rad_s) != (3,):
+        q = np.asarray(state.q, dtype=float)
+        if q.shape != (4,) or np.shape(state.omega_rad_s) != (3,):
             raise DynamicsError(
                 f"AttitudeState.q must have shape (4,) and omega_rad_s (3,), "
                 f"got {np.shape(state.q)} and {np.shape(state.omega_rad_s)}"
             )
-        if abs(math.sqrt(float(np.dot(state.q, state.q))) - 1.0) > 1e-6:
+        if abs(math.sqrt(float(q.dot(q))) - 1.0) > 1e-6:
             raise DynamicsError(f"AttitudeState.q must be a unit quaternion, got {np.asarray(state.q).tolist()}")
         if np.shape(state.wheel_speed_rad_s) != (self.n_wheels,):
             raise DynamicsError(
