@@ -137,6 +137,15 @@ class SpacecraftDynamics:
             raise DynamicsError(f"{name} {sorted(bad)} out of range: this spacecraft has {self.n_wheels} wheels")
         return wheels
 
+    def _torques(self, torque_nm: np.ndarray, name: str) -> np.ndarray:
+        """The motor torques as a float array of one value per wheel, all finite; DynamicsError naming ``name``."""
+        u = np.asarray(torque_nm, dtype=float)
+        if u.shape != (self.n_wheels,):
+            raise DynamicsError(f"{name} must have shape ({self.n_wheels},), got {u.shape}")
+        if not np.isfinite(u).all():
+            raise DynamicsError(f"{name} must be finite, got {u.tolist()}")
+        return u
+
     def _check_state(self, state: AttitudeState) -> None:
         """Raise DynamicsError if the state's arrays have the wrong shapes."""
         q = np.asarray(state.q, dtype=float)
@@ -181,21 +190,23 @@ class SpacecraftDynamics:
         dt_s: float,
         stuck_wheels: frozenset[int] = frozenset(),
         failed_wheels: frozenset[int] = frozenset(),
+        before_nm: np.ndarray | None = None,
+        switch_s: float = 0.0,
     ) -> AttitudeState:
-        """Return the state after dt_s with the motor torques held.
+        """Return the state after dt_s with the motor torques held (``before_nm`` for the first ``switch_s`` of them,
+        if given: torques that change within the period, in one call).
 
         torque_cmd_nm (N,) is the motor torque on each rotor about its spin axis (the body feels minus it), clipped to
         max_torque_nm and cut back at the momentum limit. A failed wheel gets no motor torque (friction spins it
         down); a stuck wheel's rotor is locked to the body (its relative momentum passes to the body at once).
         """
         self._check_state(state)
-        u_cmd = np.asarray(torque_cmd_nm, dtype=float)
-        if u_cmd.shape != (self.n_wheels,):
-            raise DynamicsError(f"torque_cmd_nm must have shape ({self.n_wheels},), got {u_cmd.shape}")
-        if not np.isfinite(u_cmd).all():
-            raise DynamicsError(f"torque_cmd_nm must be finite, got {u_cmd.tolist()}")
+        u_cmd = self._torques(torque_cmd_nm, "torque_cmd_nm")
+        u_before = u_cmd if before_nm is None else self._torques(before_nm, "before_nm")
         if not dt_s >= 0.0:
             raise DynamicsError(f"dt_s must be >= 0, got {dt_s}")
+        if not 0.0 <= switch_s <= dt_s:
+            raise DynamicsError(f"switch_s must be within 0..dt_s ({dt_s}), got {switch_s}")
         # no faulted wheels (nearly every period): nothing to check
         stuck = stuck_wheels if not stuck_wheels else self._check_wheels(stuck_wheels, "stuck_wheels")
         failed = failed_wheels if not failed_wheels else self._check_wheels(failed_wheels, "failed_wheels")
@@ -214,16 +225,20 @@ class SpacecraftDynamics:
         motor_on = mode.free.copy()
         for i in failed:
             motor_on[i] = 0.0
-        u_held = np.minimum(np.maximum(u_cmd, -self.max_torque_nm), self.max_torque_nm) * motor_on
-
-        if dt_s == 0.0:
-            n_sub = 0
-        else:
-            n_sub = max(math.ceil(dt_s / self._max_substep_s - 1e-9), math.ceil(dt_s * self._friction_rate_s / 0.5))
-        hs = dt_s / n_sub if n_sub else 0.0
-        x = integrate(np.concatenate((q, w, h)), u_held,
-                      mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw, self.max_momentum_nms,
-                      self._viscous, self._coulomb, 1.0 / self._smooth, n_sub, hs)
+        x = np.concatenate((q, w, h))
+        segments = ((u_before, switch_s), (u_cmd, dt_s - switch_s)) if switch_s > 0.0 else ((u_cmd, dt_s),)
+        for u, span_s in segments:
+            if span_s == 0.0 and len(segments) > 1:
+                continue
+            u_held = np.minimum(np.maximum(u, -self.max_torque_nm), self.max_torque_nm) * motor_on
+            if span_s == 0.0:
+                n_sub = 0
+            else:
+                n_sub = max(math.ceil(span_s / self._max_substep_s - 1e-9),
+                            math.ceil(span_s * self._friction_rate_s / 0.5))
+            hs = span_s / n_sub if n_sub else 0.0
+            x = integrate(x, u_held, mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw,
+                          self.max_momentum_nms, self._viscous, self._coulomb, 1.0 / self._smooth, n_sub, hs)
         q, w, h = x[:4], x[4:7], x[7:]
         speeds = (h / jw - a.T @ w) * mode.free
         return AttitudeState(q=q, omega_rad_s=w, wheel_speed_rad_s=speeds)

@@ -200,10 +200,8 @@ class Universe:
         failed = frozenset(f.wheel for f in self.faults.active("wheel_failed", self.t_s) if f.wheel is not None)
         # the wheels keep the previous torques until the control task's modelled finish, then take the new ones
         delay = min(reply.actuation_delay_s, self.dt_s)
-        if delay > 0:
-            self.state = self.dynamics.step(self.state, previous_nm, delay, stuck, failed)
-        if delay < self.dt_s:
-            self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s - delay, stuck, failed)
+        self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s, stuck, failed, before_nm=previous_nm,
+                                        switch_s=max(delay, 0.0))
         self.step += 1
         self.t_s = self.cfg.start_s + self.step * self.dt_s
         if reply.clock_adjust_s:  # the OBSW commanded its oscillator to step, from this period on

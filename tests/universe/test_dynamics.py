@@ -284,3 +284,26 @@ def test_an_integration_effort_of_hours_per_period_is_refused_at_load(overrides:
     with pytest.raises(ValidationError, match="integration_substep_s must be >= 0.0001 s"):
         SpacecraftConfig(**overrides)
     SpacecraftConfig(integration_substep_s=1e-4)  # the bound itself is allowed
+
+
+@settings(max_examples=60, deadline=None)
+@given(before=st.lists(st.floats(-5e-3, 5e-3), min_size=3, max_size=3),
+       after=st.lists(st.floats(-5e-3, 5e-3), min_size=3, max_size=3), switch=st.floats(0.0, 1.0),
+       rate=st.lists(st.floats(-0.2, 0.2), min_size=3, max_size=3), stuck=st.sampled_from([(), (1,)]),
+       failed=st.sampled_from([(), (2,)]))
+def test_torques_switched_within_a_period_equal_two_steps(before, after, switch, rate, stuck, failed) -> None:
+    """One step with the torques switched at ``switch_s`` gives the state of two steps (the first torques up to the
+    switch, the others after), to rounding; the switch at 0 is one step with the new torques."""
+    dyn = spacecraft(inertia=TUMBLING_INERTIA)
+    state = AttitudeState(q=Rotation.from_rotvec([0.3, -0.2, 0.1]).as_quat(), omega_rad_s=np.asarray(rate),
+                          wheel_speed_rad_s=np.array([50.0, -30.0, 10.0]))
+    dt, at = 0.1, switch * 0.1
+    kw = {"stuck_wheels": frozenset(stuck), "failed_wheels": frozenset(failed)}
+    one = dyn.step(state, np.asarray(after), dt, before_nm=np.asarray(before), switch_s=at, **kw)
+    two = dyn.step(state, np.asarray(before), at, **kw) if at > 0 else state
+    two = dyn.step(two, np.asarray(after), dt - at, **kw) if at < dt else two
+    assert np.allclose(one.q, two.q, atol=1e-12) and np.allclose(one.omega_rad_s, two.omega_rad_s, atol=1e-12)
+    assert np.allclose(one.wheel_speed_rad_s, two.wheel_speed_rad_s, atol=1e-9)
+    if at == 0.0:
+        plain = dyn.step(state, np.asarray(after), dt, **kw)
+        assert np.array_equal(one.q, plain.q) and np.array_equal(one.wheel_speed_rad_s, plain.wheel_speed_rad_s)
