@@ -43,7 +43,8 @@ def _figure(rows: int = 1, height_in: float = 3.2) -> tuple[Figure, list]:
 def png_bytes(fig: Figure, dpi: int) -> bytes:
     """The figure as PNG octets."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    # zlib level 1, not 6: the report's processor time 7.2 -> 6.1 s on the nominal run, the page 1.7 -> 1.9 MB
+    fig.savefig(buf, format="png", dpi=dpi, pil_kwargs={"compress_level": 1})
     return buf.getvalue()
 
 
