@@ -39,7 +39,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from obsw.config import ImagingConfig
-from obsw.imaging_geometry import FramePrediction, phase_offset_px
+from obsw.imaging_geometry import LIT_CENTROID_FACTOR, FramePrediction, phase_offset_px
 from obsw.imaging_labelling import Components, connected_components
 
 
@@ -145,11 +145,16 @@ class Regions:
         return out
 
 
-def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int) -> Blob:
-    """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``):
-    a lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels
-    (ties: the larger, then raster order)."""
+def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None) -> Blob:
+    """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``): a
+    lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels. Only
+    parts of at least a quarter of ``n_pixels`` compete when there are any (a star or a speck of noise in the dust is
+    brighter than the surface but holds a few pixels), and with the body's predicted ``place``, only those there when
+    any is (ties: the larger, then raster order)."""
     parts = regions.parts(blob, n_pixels, first_label)
+    if place is not None:
+        parts = [p for p in parts if _distance(p.region_centroid_col_row, place.col_row) <= place.radius_px] or parts
+    parts = [p for p in parts if 4 * p.area_px >= n_pixels] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
 
 
@@ -164,6 +169,8 @@ class Expected:
     didymos_radius_max: float
     dimorphos_radius_max: float
     orbit_radius_max: float
+    didymos_radius: float = 0.0  # predicted apparent radius
+    lit_shift_per_radius: tuple[float, float] = (0.0, 0.0)  # (col, row) lit centroid - centre, in apparent radii
 
 
 def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected | None:
@@ -171,7 +178,10 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
     if prediction is None or prediction.didymos_radius_px is None or prediction.dimorphos_radius_px is None \
             or prediction.orbit_radius_max_px is None:
         return None
-    lit = 0.5 * (1.0 - prediction.sun_camera[2])  # (1 + cos g) / 2, the body near the boresight: cos g = -sun_z
+    sx, sy, sz = prediction.sun_camera
+    cos_g = -sz  # the body near the boresight
+    d = math.hypot(sx, sy)
+    lit = 0.5 * (1.0 + cos_g)  # (1 + cos g) / 2
     b = cfg.blur_margin_px
     k = prediction.radius_factor_max
     r_did, r_dim = prediction.didymos_radius_px, prediction.dimorphos_radius_px
@@ -184,6 +194,10 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
         didymos_radius_max=k * r_did + b,
         dimorphos_radius_max=k * r_dim + b,
         orbit_radius_max=prediction.orbit_radius_max_px,
+        didymos_radius=r_did,
+        # the phase offset near the boresight (across the 2.9 deg field the phase angle changes by 1.5 deg at most)
+        lit_shift_per_radius=(LIT_CENTROID_FACTOR * (1.0 - cos_g) * sx / d, LIT_CENTROID_FACTOR * (1.0 - cos_g) * sy / d)
+        if d > 1e-12 else (0.0, 0.0),
     )
 
 
@@ -230,10 +244,17 @@ def _box_gap_px(a: Blob, b: Blob) -> int:
     return max(bx - (ax + aw), ax - (bx + bw), by - (ay + ah), ay - (by + bh), 0)
 
 
-def _piece_of_crescent(blob: Blob, didymos: Blob, cfg: ImagingConfig) -> bool:
+def _piece_of_crescent(blob: Blob, didymos: Blob, exp: Expected | None, cfg: ImagingConfig) -> bool:
     """Return whether ``blob`` may be a piece of Didymos's thin crescent broken off at the threshold: Didymos is
-    elongated and the blob lies within a few pixels of its box."""
-    return didymos.elongation >= cfg.crescent_min_elongation and _box_gap_px(blob, didymos) <= cfg.crescent_gap_px
+    elongated, the blob lies within a few pixels of its box and, with expected sizes, on Didymos's disc: within its
+    largest radius of its centre (its region centroid moved back from the lit part by the phase offset)."""
+    if didymos.elongation < cfg.crescent_min_elongation or _box_gap_px(blob, didymos) > cfg.crescent_gap_px:
+        return False
+    if exp is None:
+        return True
+    c, shift, r = didymos.region_centroid_col_row, exp.lit_shift_per_radius, exp.didymos_radius
+    centre = (c[0] - shift[0] * r, c[1] - shift[1] * r)
+    return _distance(blob.region_centroid_col_row, centre) <= exp.didymos_radius_max
 
 
 def _largest(blobs: list[Blob]) -> Blob:
@@ -353,11 +374,13 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         return exp is not None and b.area_px > exp.dimorphos_area_max
 
     if exp is not None and regions is not None:
-        n = round(exp.dimorphos_area)
-        least = cfg.dimorphos_min_peak_fraction * aperture_dn8(regions, didymos, n)
+        # the brightest quarter of Dimorphos's expected area on both: the part of each disc lit nearest normal
+        # incidence, whatever the phase and the shading law (a whole disc's mean is far lower at high phase)
+        best_lit = max(1, round(exp.dimorphos_area / 4))
+        least = cfg.dimorphos_min_peak_fraction * aperture_dn8(regions, didymos, best_lit)
 
         def bright(b: Blob) -> bool:
-            return aperture_dn8(regions, b, n) >= least
+            return aperture_dn8(regions, b, best_lit) >= least
     else:
         def bright(b: Blob) -> bool:
             return b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
@@ -368,7 +391,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         and bright(b)
         and _near(b, origin, gate, oversized(b))
         and (place is None or _near(b, place.col_row, place.radius_px, oversized(b)))
-        and not _piece_of_crescent(b, didymos, cfg)
+        and not _piece_of_crescent(b, didymos, exp, cfg)
     ]
     if not in_gate:
         return None
@@ -452,7 +475,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
             dimorphos.area_px > exp.dimorphos_area_max
             or dimorphos.trimmed_from and dimorphos.area_px > exp.dimorphos_area):
         # larger than Dimorphos can be, or cut out of a blob that held ejecta: keep its brightest part of its size
-        dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label)
+        dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
     return didymos, dimorphos
 
 
