@@ -394,6 +394,14 @@ class ImagingConfig(Config):
         description="the point-spread function widens a body's region above the threshold by about this much beyond "
         "its disc, px at 512 scale (a one-pixel Gaussian sigma at full resolution is half a binned pixel)",
     )
+    point_source_sigma_max_px: float = Field(
+        0.67,
+        gt=0,
+        description="largest spread of a point source's light, one sigma, px at 512 scale: the camera's "
+        "point-spread function of at most 1.2 full-resolution px sigma (ground calibration; the universe camera's is "
+        "1.0) is 0.6 binned px, and the 2x2 binning adds a box of 1/12 px^2: sqrt(0.36 + 0.083) = 0.67. A star "
+        "spreads no more; a body that must be resolved (radius at least twice this) is not taken for one",
+    )
     phase_correction: bool = Field(
         True,
         description="move each body's centroid from its lit part to its centre by the phase-angle model of "

@@ -77,6 +77,7 @@ class Regions:
     threshold_dn8: int
     part_pixels: dict[int, np.ndarray] = field(default_factory=dict)  # label of a part -> its foreground positions
     histograms: dict[str, np.ndarray] = field(default_factory=dict)  # "regions": each region's 8-bit histogram
+    linear8: np.ndarray | None = None  # the raw value each 8-bit code stands for (``light_spread_px2``)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
               image_size: int | None = None, cuts: tuple[int, ...] = (), min_area_px: int = 1) -> list[Blob]:
@@ -145,6 +146,33 @@ class Regions:
         return out
 
 
+def light_spread_px2(regions: Regions, blob: Blob) -> float:
+    """The spread of a blob's light: the variance, mean of both axes, px^2, of its pixels' positions weighted by
+    their light above the threshold (raw values, the 8-bit codes taken back through the compression table). A point
+    source spreads it as the point-spread function does; a resolved disc of radius r adds r^2 / 4."""
+    assert regions.linear8 is not None
+    sel = regions.pixels_of(blob)
+    w = regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8]
+    rows, cols = np.divmod(regions.components.pixel_index[sel], regions.width)
+    total = float(w.sum())
+    if total <= 0.0:
+        return 0.0
+    mc, mr = float(w @ cols) / total, float(w @ rows) / total
+    return 0.5 * (float(w @ ((cols - mc) ** 2)) + float(w @ ((rows - mr) ** 2))) / total
+
+
+def _must_be_resolved(radius_min_px: float, regions: Regions | None, cfg: ImagingConfig) -> bool:
+    """Whether a body of at least ``radius_min_px`` is resolved, its spread at least twice a point source's: a disc's
+    r^2 / 4 at least ``point_source_sigma_max_px`` squared (and the spread can be measured)."""
+    return regions is not None and regions.linear8 is not None \
+        and radius_min_px ** 2 / 4.0 >= cfg.point_source_sigma_max_px ** 2
+
+
+def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
+    """Whether a blob's light spreads no more than a point source's (``light_spread_px2``): a star."""
+    return light_spread_px2(regions, blob) <= cfg.point_source_sigma_max_px ** 2
+
+
 def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None) -> Blob:
     """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``): a
     lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels. Only
@@ -169,7 +197,10 @@ class Expected:
     didymos_radius_max: float
     dimorphos_radius_max: float
     orbit_radius_max: float
-    didymos_radius: float = 0.0  # predicted apparent radius
+    didymos_radius: float = 0.0  # predicted apparent radii
+    dimorphos_radius: float = 0.0
+    radius_factor_max: float = 1.0  # apparent radii are at most this many times the predicted ones (and at least
+    # the predicted ones over it)
     lit_shift_per_radius: tuple[float, float] = (0.0, 0.0)  # (col, row) lit centroid - centre, in apparent radii
 
 
@@ -195,6 +226,8 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
         dimorphos_radius_max=k * r_dim + b,
         orbit_radius_max=prediction.orbit_radius_max_px,
         didymos_radius=r_did,
+        dimorphos_radius=r_dim,
+        radius_factor_max=k,
         # the phase offset near the boresight (across the 2.9 deg field the phase angle changes by 1.5 deg at most)
         lit_shift_per_radius=(LIT_CENTROID_FACTOR * (1.0 - cos_g) * sx / d, LIT_CENTROID_FACTOR * (1.0 - cos_g) * sy / d)
         if d > 1e-12 else (0.0, 0.0),
@@ -262,13 +295,23 @@ def _largest(blobs: list[Blob]) -> Blob:
     return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
 
 
-def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None) -> Blob:
+def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig) -> Blob:
     """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
-    fainter clump of ejecta of its size or a small star; without sizes, the largest."""
+    fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
+    however bright (a star: ``_extended``); without sizes, the largest."""
     if exp is None or regions is None:
         return _largest(blobs)
     n = round(exp.didymos_area)
-    return max(blobs, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
+
+    def light(b: Blob) -> tuple[float, int, int]:
+        return (aperture_dn8(regions, b, n), b.area_px, -b.label)
+
+    best = max(blobs, key=light)
+    if _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg) \
+            and _point_source(regions, best, cfg):
+        # a star brighter than a small Didymos: the brightest extended candidate, if any
+        best = max([b for b in blobs if not _point_source(regions, b, cfg)] or blobs, key=light)
+    return best
 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
@@ -291,14 +334,14 @@ def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | 
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
                     prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None) -> Blob:
     """Didymos among the ``likely`` candidates (see the module docstring); ``cands`` are all candidates."""
-    didymos = _best_didymos(likely, exp, regions)
+    didymos = _best_didymos(likely, exp, regions, cfg)
     if prev_did is not None and prev_dim is not None:
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         predicted = _relative(prev_dim, prev_did)
         paired = [c for c in likely if any(
             d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in cands)]
         if paired:
-            didymos = _best_didymos(paired, exp, regions)
+            didymos = _best_didymos(paired, exp, regions, cfg)
     return didymos
 
 
@@ -405,8 +448,13 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     if exp is None or regions is None:
         sized = [b for b in in_gate if b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px]
         return _largest(sized) if sized else None
-    # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star
+    # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star; and
+    # when it must be resolved, never a point source (a star, however bright: Dimorphos hidden or merged with Didymos)
     n = round(exp.dimorphos_area)
+    if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
+        in_gate = [b for b in in_gate if not _point_source(regions, b, cfg)]
+        if not in_gate:
+            return None
     return max(in_gate, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
 
 

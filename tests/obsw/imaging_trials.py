@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 
 from obsw.config import ImagingConfig
 from obsw.imaging import BadPixelMap, Blob, Detections, FramePrediction, process_frame
@@ -36,6 +37,7 @@ MAX_SHAPE_RATIO = 1.5  # the on-board knowledge of the bodies' shapes (TargetKno
 # a body is detectable when its brightest binned pixel is 10 sigma above the background: the threshold is 5 sigma
 # (ImagingConfig.noise_k_sigma) and the pixel must clear it by another 5 sigma of noise
 MIN_SNR = 10.0
+NOISE_FLOOR_SIGMA = 5.0  # the noise floor of a threshold (ImagingConfig.noise_k_sigma)
 RANGE_ERROR = 0.1  # the prediction's range is off by up to this fraction (3 sigma of the early approach)
 
 
@@ -191,16 +193,33 @@ def perturbed_identities(scene: Scene, seed: int, prediction: FramePrediction, k
     return t.didymos.truth_index, t.dimorphos.truth_index
 
 
-def visible(frame: Frame, index: int, min_size_px: float = 3.0, require_snr: bool = True) -> bool:
+def visible(frame: Frame, index: int, min_size_px: float = 3.0, require_snr: bool = True,
+            require_apart: bool = True) -> bool:
     """A body the chain must find: its lit part at least ``min_size_px`` binned px across (the diameter of a disc of
     its lit area in the frame), at most 10 % of its lit surface hidden by the other body, at least half of it in the
-    frame and, with ``require_snr``, bright enough to be told from the noise: ``peak_snr`` at least ``MIN_SNR``."""
+    frame; with ``require_snr``, bright enough to be told from the noise (``peak_snr`` at least ``MIN_SNR``); with
+    ``require_apart``, not swallowed by the other body (``swallowed``)."""
     t = frame.truth[index]
     total = t.lit_px + t.hidden_px + t.off_frame_px
     lit_512 = t.lit_px / (frame.scene.size_px / 512) ** 2
     seen = 2.0 * math.sqrt(lit_512 / math.pi) >= min_size_px and total > 0 and t.hidden_px <= 0.1 * total \
         and t.off_frame_px <= 0.5 * total
-    return seen and (not require_snr or peak_snr(frame, index) >= MIN_SNR)
+    return seen and (not require_snr or peak_snr(frame, index) >= MIN_SNR) \
+        and (not require_apart or not swallowed(frame, index))
+
+
+def swallowed(frame: Frame, index: int) -> bool:
+    """Whether a body is the smaller of a pair whose images are one region at the noise floor: their noise-free
+    binned signals, each cut at ``NOISE_FLOOR_SIGMA`` binned noise sigmas, overlap or touch (8-connected). The body
+    is then seen against the other's lit surface (a transit) or its limb: the same albedo gives no edge between
+    them, and a threshold and a labelling (the paper's imaging chain) find one blob, the larger body."""
+    other = 1 - index
+    if frame.truth[index].lit_px >= frame.truth[other].lit_px:
+        return False
+    floor = NOISE_FLOOR_SIGMA * frame.scene.read_noise_dn / (frame.scene.size_px // 512)
+    mine = noiseless_binned(frame.scene, index) > floor
+    theirs = noiseless_binned(frame.scene, other) > floor
+    return bool((binary_dilation(mine, structure=np.ones((3, 3), dtype=bool)) & theirs).any())
 
 
 def peak_snr(frame: Frame, index: int) -> float:
