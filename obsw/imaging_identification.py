@@ -512,11 +512,14 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                                                    next_label)
     elif exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area:
         # room for both bodies: Dimorphos may be merged with Didymos, bridged by ejecta or the blur; a part of
-        # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos
+        # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos;
+        # so is a larger one (holding ejecta, trimmed below) where the trajectory puts Dimorphos, when it puts it
+        # closer than the orbit's radius (the place then tells Dimorphos from Didymos)
         split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label)
         found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions)
         if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
-                and found.area_px <= exp.dimorphos_area_max:
+                and (found.area_px <= exp.dimorphos_area_max
+                     or place is not None and place.radius_px < exp.orbit_radius_max):
             cands, likely, didymos, next_label = split
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
     if dimorphos is not None and exp is not None and regions is not None and (

@@ -43,8 +43,8 @@ RANGE_ERROR = 0.1  # the prediction's range is off by up to this fraction (3 sig
 
 def prediction_for(scene: Scene, rng: np.random.Generator, place_sigma_px: float | None) -> FramePrediction:
     """What the flight software would expect of this frame: radii and orbit radius from a range off by up to 10 %,
-    the bodies' mean radii, the Sun; Dimorphos's place within ``place_sigma_px`` (one sigma, binned px; None: not
-    known, as before the trajectory is recognised)."""
+    the bodies' mean radii, the Sun; Dimorphos's place within ``place_sigma_px`` (one sigma, binned px, truncated at
+    the stated uncertainty of 3 sigma; None: not known, as before the trajectory is recognised)."""
     e = 1.0 + rng.uniform(-RANGE_ERROR, RANGE_ERROR)
     f = scene.size_px // 512
     f512 = focal_length_px(2.9, 512)
@@ -52,8 +52,14 @@ def prediction_for(scene: Scene, rng: np.random.Generator, place_sigma_px: float
     place = unc = None
     if place_sigma_px is not None:
         c = ((dim.col - 0.5 * (f - 1)) / f, (dim.row - 0.5 * (f - 1)) / f)
-        place = (c[0] + rng.normal(0.0, place_sigma_px), c[1] + rng.normal(0.0, place_sigma_px))
         unc = 3.0 * place_sigma_px
+        # the error within the stated uncertainty, as the flight software's is (the image of the trajectory's
+        # 3-sigma box, predict_frame): a 2-D normal is beyond 3 sigma once in 90 draws
+        while True:
+            err = (rng.normal(0.0, place_sigma_px), rng.normal(0.0, place_sigma_px))
+            if math.hypot(*err) <= unc:
+                break
+        place = (c[0] + err[0], c[1] + err[1])
     s = tuple(float(v) for v in scene.sun_camera)
     return FramePrediction(
         sun_camera=(s[0], s[1], s[2]),

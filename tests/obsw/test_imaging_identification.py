@@ -173,3 +173,11 @@ def test_light_spread_is_the_weighted_second_moment_of_opencv(seed: int) -> None
         m = cv2.moments(weight)
         expected = 0.5 * (m["mu20"] + m["mu02"]) / m["m00"]
         assert light_spread_px2(regions, blob) == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.parametrize(("seed", "k", "index"), [(1, 74, 0), (1, 74, 1), (3, 224, 0)])
+def test_ejecta_bridging_the_pair_are_split_off_both(seed: int, k: int, index: int) -> None:
+    """A plume merging Dimorphos with Didymos into one blob, Dimorphos's place known closer than the orbit's radius:
+    the blob is split, Dimorphos (with dust, trimmed) at its place, and Didymos's centre within 15 px (bench frames
+    that lost Dimorphos and put Didymos 20-35 px off)."""
+    _assert_found(_bench_trial(seed, k), index)
