@@ -341,8 +341,9 @@ class ImagingConfig(Config):
         le=1,
         description="smallest Dimorphos/Didymos brightness ratio in 8-bit DN above the threshold (same albedo; "
         "rejects faint stars, the diffuse plume and small clumps of it; sqrt compression maps a 10x dimmer surface to "
-        "0.32): of their peaks without a prediction, and with one, of the light each holds in Dimorphos's expected "
-        "area (obsw/imaging_identification.py, aperture_dn8)",
+        "0.32): of their peaks without a prediction, and with one, of the light each holds in the best-lit quarter "
+        "of Dimorphos's expected area, the part of each disc nearest normal incidence whatever the phase and the "
+        "shading law (obsw/imaging_identification.py, aperture_dn8)",
     )
     dimorphos_max_relative_jump_didymos_diameters: float = Field(
         0.5,

@@ -10,22 +10,29 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   lit surface itself: the blur only adds faint pixels around it), and its largest region, the same with the radius
   k r + blur + 1 (k the largest radius factor: shape and range uncertainty; blur ``blur_margin_px``; one pixel of
   digitisation).
-- **Didymos** is the candidate whose area is nearest the expected Didymos area in ratio, among those nearer it than
-  the expected Dimorphos area (a blob touching the frame's edge may be smaller); without a prediction, the largest.
-  With a pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset
-  predicts Dimorphos, and a Dimorphos-sized blob that continues Dimorphos while that offset puts Didymos off the
-  image is Dimorphos alone (near C/A).
+- **Didymos** is the candidate holding the most light in Didymos's expected area (``aperture_dn8``: its brightest
+  pixels of that number above the threshold), among those within the orbit's reach of Dimorphos's predicted place;
+  when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
+  source (``light_spread_px2``: a star brighter than a small Didymos); without a prediction, the largest. With a
+  pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
+  Dimorphos, and a Dimorphos-sized blob that continues Dimorphos while that offset puts Didymos off the image is
+  Dimorphos alone (near C/A).
 - **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
-  trimmed to its brightest pixels of the expected area of both bodies (``trim``), the 8-connected parts of which
-  take its place. The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest
-  pixels of Dimorphos's expected area: the ejecta leave Dimorphos and fade away from it, so the brightest part of
-  the blob is the body. No threshold is tuned on a flyby: the areas come from the known sizes and the range.
+  trimmed to its brightest pixels of the expected area of both bodies, the 8-connected parts of which take its
+  place; a blob with room for both is split the same way when a part of it is Dimorphos (no larger than Dimorphos
+  can be, or larger, holding ejecta, at the trajectory's place when that place is closer than the orbit's radius).
+  The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest pixels of
+  Dimorphos's expected area, and of their parts the brightest by mean among those of at least a quarter of that
+  area (``trimmed``): the ejecta leave Dimorphos and fade away from it, and a star in the dust holds a few pixels.
+  No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
   a prediction: within ``dimorphos_max_separation_didymos_diameters`` of Didymos). A candidate there must be
-  bright like a body (peak at least ``dimorphos_min_peak_fraction`` of Didymos's) and not a piece of Didymos's
-  thin crescent. The one continuing the last pair's relative offset wins; else the one whose area is nearest the
-  expected Dimorphos area (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of Didymos).
+  bright like a body (the light of its best-lit quarter of Dimorphos's expected area at least
+  ``dimorphos_min_peak_fraction`` of Didymos's; without a prediction, its peak) and not a piece of Didymos's thin
+  crescent (beside its box and on its disc). The one continuing the last pair's relative offset wins; else the one
+  holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved
+  (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of Didymos).
 - **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
   its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
   the radius of a disc whose lit part has the region's area).
