@@ -89,8 +89,9 @@ def body_pixels_512(frame: Frame) -> np.ndarray:
 
 def identity(blob: Blob | None, frame: Frame, mask: np.ndarray | None = None) -> int | None:
     """Which true body a reported blob is: the body whose pixels (the frame's owner map) the blob's ``mask`` (512 x
-    512) holds most of, provided the blob's centroid is within that body's radius x 1.5 + 15 px of its centre; a body
-    too small to own a pixel is taken by that distance alone; -1 for anything else (a star, a defect, the plume);
+    512) holds most of, provided the blob's centroid is within that body's radius x 1.5 + 15 px of its centre; of bodies
+    too small to own a pixel, the larger whose centre the blob holds, else the nearest within that distance; -1 for
+    anything else (a star, a defect, the plume);
     None for no blob. A blob holding two merged bodies is the one it holds more of. Without a mask, the nearest
     centre within the same distance."""
     if blob is None:
@@ -109,6 +110,14 @@ def identity(blob: Blob | None, frame: Frame, mask: np.ndarray | None = None) ->
         unresolved = [i for i in range(len(frame.truth)) if not (owners == i).any() and near(i)]
         if not unresolved:
             return -1
+
+        def inside(i: int) -> bool:
+            c, r = (round(v) for v in frame.truth[i].centre_512)
+            return 0 <= r < mask.shape[0] and 0 <= c < mask.shape[1] and bool(mask[r, c])
+
+        held_centres = [i for i in unresolved if inside(i)]
+        if held_centres:  # unresolved bodies in one blob: the larger, as for resolved ones
+            return max(held_centres, key=lambda i: frame.truth[i].radius_512_px)
         return min(unresolved, key=lambda i: math.dist(blob.region_centroid_col_row, frame.truth[i].centre_512))
     best, dist = -1, math.inf
     for i, t in enumerate(frame.truth):
