@@ -176,7 +176,11 @@ def _must_be_resolved(radius_min_px: float, regions: Regions | None, cfg: Imagin
 
 
 def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
-    """Whether a blob's light spreads no more than a point source's (``light_spread_px2``): a star."""
+    """Whether a blob's light spreads no more than a point source's (``light_spread_px2``): a star. A blob wider than
+    a point source's image can be is not one, without measuring it: a Gaussian of sigma s with a peak of at most
+    2^16 times the threshold's level stays above it within s sqrt(2 ln 2^16) = 4.7 s of its centre."""
+    if blob.diameter_px > 2.0 * 4.7 * cfg.point_source_sigma_max_px + 2.0:
+        return False
     return light_spread_px2(regions, blob) <= cfg.point_source_sigma_max_px ** 2
 
 
@@ -458,11 +462,10 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star; and
     # when it must be resolved, never a point source (a star, however bright: Dimorphos hidden or merged with Didymos)
     n = round(exp.dimorphos_area)
+    ranked = sorted(in_gate, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label), reverse=True)
     if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
-        in_gate = [b for b in in_gate if not _point_source(regions, b, cfg)]
-        if not in_gate:
-            return None
-    return max(in_gate, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
+        return next((b for b in ranked if not _point_source(regions, b, cfg)), None)
+    return ranked[0]
 
 
 def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob], exp: Expected,
