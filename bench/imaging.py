@@ -9,9 +9,16 @@ edge). Each frame is processed with the prediction the flight software would hav
 and the bad-pixel map ground would upload (dead pixels and columns, half the hot pixels), and by the OpenCV pipeline
 (``tests/obsw/opencv_reference.py``) with the same map. Printed:
 
-- detection: bodies whose lit part spans at least 3 binned px, not hidden by the other body and at least half in
-  the frame, reported as themselves;
-- wrong reports: a body reported where another body, a star, a defect or the plume is;
+- detection: bodies whose lit part spans at least 3 binned px, not hidden by the other body, at least half in
+  the frame and detectable (the peak of the body's noise-free binned signal at least 10 sigma of the binned
+  background noise: 5 sigma to the threshold and 5 more of noise) and not swallowed by the other body (the smaller
+  of a pair whose noise-free images, cut at 5 sigma, touch or overlap: seen against the other's lit surface or limb,
+  one blob at the noise floor, with no edge between them at the same albedo; ``imaging_trials.visible``; counted
+  apart), reported as
+  themselves (a reported region is the body whose pixels it holds most of, ``imaging_trials.identity``);
+- misses and wrong reports (a body reported where another body, a star, a defect or the plume is; counted for
+  bodies of 3 px and more), each with its classes (``imaging_trials.failure_classes``: small, faint, phase, edge,
+  close pair, plume, unrecognised trajectory; and what was reported instead);
 - one defect more (a saturated hot pixel or a 6 px cosmic ray on Didymos, on Dimorphos, or anywhere; same noise):
   reports whose body changed (to another body or to none);
 - centroids: distance from the OpenCV region centroid of the same blob; distance from the true centre of correctly
@@ -45,7 +52,10 @@ from obsw.imaging_kernels import warm_up  # noqa: E402
 from obsw.trajectory import NominalTrajectory  # noqa: E402
 from tests.obsw.frame_generator import random_scene, render  # noqa: E402
 from tests.obsw.imaging_trials import (  # noqa: E402
+    PAPER_LIMIT_PX,
+    failure_classes,
     ground_map,
+    peak_snr,
     perturbed_identities,
     prediction_for,
     run_trial,
@@ -60,15 +70,20 @@ from universe.shapes import ShapeModel  # noqa: E402
 DEFECTS = (("hot", 0), ("hot", 1), ("hot", None), ("cosmic", 0), ("cosmic", 1), ("cosmic", None))
 
 
-def independent(n: int, seed: int) -> None:
-    """Run the trials on n independent frames and print the figures."""
+def independent(n: int, seed: int, defects: bool = True) -> None:
+    """Run the trials on n independent frames and print the figures, each miss and wrong report with its classes."""
     found = {0: [0, 0], 1: [0, 0]}
+    swallowed_found = {0: [0, 0], 1: [0, 0]}
+    misses: list[str] = []
     wrong: list[str] = []
+    wrong_small = 0
     opencv: list[float] = []
     errors: dict[int, list[tuple[float, float]]] = {0: [], 1: []}
+    far: list[str] = []
     changed: list[str] = []
     lost_found = 0
     trials = 0
+    names = ("Didymos", "Dimorphos")
     for k in range(n):
         rng = np.random.default_rng([seed, k])
         scene = random_scene(rng)
@@ -76,19 +91,32 @@ def independent(n: int, seed: int) -> None:
         t = run_trial(scene, k, prediction)
         base = (t.didymos.truth_index, t.dimorphos.truth_index)
         for i, body in ((0, t.didymos), (1, t.dimorphos)):
-            name = ("Didymos", "Dimorphos")[i]
+            size = t.frame.truth[i].diameter_512_px
+            line = (f"frame {k}: {names[i]} ({size:.1f} px, SNR {peak_snr(t.frame, i):.0f}): "
+                    f"{', '.join(failure_classes(t, i))}")
+            if visible(t.frame, i, require_apart=False) and not visible(t.frame, i):
+                swallowed_found[i][0] += 1
+                swallowed_found[i][1] += body.truth_index == i
             if visible(t.frame, i):
                 found[i][0] += 1
                 found[i][1] += body.truth_index == i
+                if body.truth_index != i:
+                    misses.append(line)
             if body.truth_index is not None and body.truth_index != i:
-                what = "a star, defect or plume" if body.truth_index < 0 else ("Didymos", "Dimorphos")[body.truth_index]
-                size = t.frame.truth[i].diameter_512_px
-                wrong.append(f"frame {k}: {name} ({size:.1f} px) reported on {what}")
+                if visible(t.frame, i, require_snr=False, require_apart=False):
+                    wrong.append(line)
+                else:
+                    wrong_small += 1
             if body.opencv_px is not None:
                 opencv.append(body.opencv_px)
             blob = t.detections.didymos if i == 0 else t.detections.dimorphos
             if body.truth_index == i and blob is not None and not blob.touches_edge:
                 errors[i].append((body.uncorrected_error_px, body.error_px))  # type: ignore[arg-type]
+                if body.error_px > PAPER_LIMIT_PX:  # type: ignore[operator]
+                    far.append(f"frame {k}: {names[i]} {body.error_px:.1f} px from its centre: "
+                               f"{', '.join(c for c in failure_classes(t, i) if not c.startswith('reported'))}")
+        if not defects:
+            continue
         for kind, target in DEFECTS:
             got = perturbed_identities(scene, k, prediction, kind, target, np.random.default_rng([seed, k, 7]))
             trials += 1
@@ -96,32 +124,42 @@ def independent(n: int, seed: int) -> None:
                 if got[i] == base[i]:
                     continue
                 if got[i] is not None and base[i] is not None:
-                    changed.append(f"frame {k}: {kind} on {target}: {('Didymos', 'Dimorphos')[i]} {base[i]} -> {got[i]}")
+                    changed.append(f"frame {k}: {kind} on {target}: {names[i]} {base[i]} -> {got[i]}")
                 else:
                     lost_found += 1
     print(f"Independent frames: {n} (tests/obsw/frame_generator.py, seed {seed})")
-    for i, name in ((0, "Didymos"), (1, "Dimorphos")):
+    for i, name in enumerate(names):
         total, ok = found[i]
         print(f"  {name} detected in {ok} of {total} frames where it must be ({100.0 * ok / max(total, 1):.1f} %)")
-    print(f"  wrong reports: {len(wrong)} (bodies reported on another body, a star, a defect or the plume)")
+        total, ok = swallowed_found[i]
+        if total:
+            print(f"    and in {ok} of {total} frames where the other body swallows it (not required)")
+    print(f"  misses: {len(misses)}")
+    for line in misses:
+        print(f"    {line}")
+    print(f"  wrong reports of bodies of 3 px and more: {len(wrong)} (on another body, a star, a defect or the "
+          f"plume); of smaller bodies: {wrong_small}")
     for line in wrong:
         print(f"    {line}")
-    print(f"  one defect more, {trials} trials x 2 bodies: {len(changed)} reports changed to another blob, "
-          f"{lost_found} found or lost")
-    for line in changed:
-        print(f"    {line}")
-    far = sum(1 for d in opencv if d > 2.0)
+    if defects:
+        print(f"  one defect more, {trials} trials x 2 bodies: {len(changed)} reports changed to another blob, "
+              f"{lost_found} found or lost")
+        for line in changed:
+            print(f"    {line}")
+    beyond = sum(1 for d in opencv if d > 2.0)
     print(f"  centroid vs the OpenCV region centroid of the same blob: {len(opencv)} reports, max {max(opencv):.2e} px, "
-          f"{far} beyond 2 px, {sum(1 for d in opencv if d > 15.0)} beyond 15 px")
-    for i, name in ((0, "Didymos"), (1, "Dimorphos")):
+          f"{beyond} beyond 2 px, {sum(1 for d in opencv if d > 15.0)} beyond 15 px")
+    for i, name in enumerate(names):
         if not errors[i]:
             continue
         before = np.array([e[0] for e in errors[i]])
         after = np.array([e[1] for e in errors[i]])
         print(f"  {name} centre vs truth ({len(after)} reports, not at the edge): phase-corrected median "
               f"{np.median(after):.2f} px, 99th pct {np.percentile(after, 99):.2f}, max {after.max():.2f}, "
-              f"{int((after > 15).sum())} beyond 15 px; uncorrected median {np.median(before):.2f}, max "
+              f"{int((after > PAPER_LIMIT_PX).sum())} beyond 15 px; uncorrected median {np.median(before):.2f}, max "
               f"{before.max():.2f}")
+    for line in far:
+        print(f"    {line}")
 
 
 SHAPES = (ShapeModel(seed=1), ShapeModel(seed=2, axis_ratios=(1.3, 1.0, 0.85)))
@@ -192,13 +230,17 @@ def main() -> None:
     parser.add_argument("--timing-frames", type=int, default=40, help="frames of each set for the timing")
     parser.add_argument("--repeats", type=int, default=15, help="timed runs per frame and pipeline")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--no-defect-trials", action="store_true",
+                        help="skip the one-defect-more trials (six more frames per frame)")
     parser.add_argument("--opencv-threads", type=int, default=1,
                         help="OpenCV worker threads (1: like the single-threaded flight code)")
     args = parser.parse_args()
     cv2.setNumThreads(args.opencv_threads)
     warm_up()
     if args.frames:
-        independent(args.frames, args.seed)
+        independent(args.frames, args.seed, not args.no_defect_trials)
+    if not args.timing_frames:
+        return
     flyby: list[TimedFrame] = [(frame, pred, None, None) for frame, pred in flyby_frames(args.timing_frames,
                                                                                          args.seed)]
     timing("universe camera along the flyby", flyby, args.repeats, args.opencv_threads)

@@ -341,8 +341,9 @@ class ImagingConfig(Config):
         le=1,
         description="smallest Dimorphos/Didymos brightness ratio in 8-bit DN above the threshold (same albedo; "
         "rejects faint stars, the diffuse plume and small clumps of it; sqrt compression maps a 10x dimmer surface to "
-        "0.32): of their peaks without a prediction, and with one, of the light each holds in Dimorphos's expected "
-        "area (obsw/imaging_identification.py, aperture_dn8)",
+        "0.32): of their peaks without a prediction, and with one, of the light each holds in the best-lit quarter "
+        "of Dimorphos's expected area, the part of each disc nearest normal incidence whatever the phase and the "
+        "shading law (obsw/imaging_identification.py, aperture_dn8)",
     )
     dimorphos_max_relative_jump_didymos_diameters: float = Field(
         0.5,
@@ -393,6 +394,14 @@ class ImagingConfig(Config):
         ge=0,
         description="the point-spread function widens a body's region above the threshold by about this much beyond "
         "its disc, px at 512 scale (a one-pixel Gaussian sigma at full resolution is half a binned pixel)",
+    )
+    point_source_sigma_max_px: float = Field(
+        0.67,
+        gt=0,
+        description="largest spread of a point source's light, one sigma, px at 512 scale: the camera's "
+        "point-spread function of at most 1.2 full-resolution px sigma (ground calibration; the universe camera's is "
+        "1.0) is 0.6 binned px, and the 2x2 binning adds a box of 1/12 px^2: sqrt(0.36 + 0.083) = 0.67. A star "
+        "spreads no more; a body that must be resolved (radius at least twice this) is not taken for one",
     )
     phase_correction: bool = Field(
         True,

@@ -38,6 +38,7 @@ from obsw.imaging_filtering import (
     compressed_8bit,
     compression_lut,
     filtered,
+    linear_values,
     lut,
 )
 from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, offset_rad, predict_frame
@@ -135,7 +136,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     components = connected_components(mask)
     values8 = lut(cfg, camera.bit_depth)[image.binned.reshape(-1)[components.pixel_index]] \
         if components.pixel_index.size else np.zeros(0, dtype=np.uint8)
-    regions = Regions(components, values8, n, thr.threshold_dn8)
+    regions = Regions(components, values8, n, thr.threshold_dn8, linear8=linear_values(cfg, camera.bit_depth))
     # a region smaller than a body (noise, a defect the filter left) is counted, not described
     blobs = regions.blobs(min_area_px=cfg.min_body_area_px)
     didymos, dimorphos = identify_bodies(blobs, cfg, previous, prediction, regions)

@@ -334,6 +334,25 @@ def lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
     return table
 
 
+_LINEAR_CACHE: dict[tuple[int, str], np.ndarray] = {}
+
+
+def linear_values(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
+    """The raw value (float, 256 entries) each 8-bit code stands for: the mean of the raw values the compression table
+    maps to it, interpolated between neighbours for a code no raw value maps to (the table's inverse)."""
+    key = (bit_depth, cfg.compression_law)
+    table = _LINEAR_CACHE.get(key)
+    if table is None:
+        codes = lut(cfg, bit_depth)
+        count = np.bincount(codes, minlength=256)
+        total = np.bincount(codes, weights=np.arange(codes.size, dtype=np.float64), minlength=256)
+        hit = count > 0
+        table = np.interp(np.arange(256.0), np.flatnonzero(hit), total[hit] / count[hit])
+        table.setflags(write=False)
+        _LINEAR_CACHE[key] = table
+    return table
+
+
 def binned(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
     """Return the frame binned to cfg.binned_size_px by the rounded mean of square blocks (raw bit depth), without
     defect correction."""

@@ -10,22 +10,29 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   lit surface itself: the blur only adds faint pixels around it), and its largest region, the same with the radius
   k r + blur + 1 (k the largest radius factor: shape and range uncertainty; blur ``blur_margin_px``; one pixel of
   digitisation).
-- **Didymos** is the candidate whose area is nearest the expected Didymos area in ratio, among those nearer it than
-  the expected Dimorphos area (a blob touching the frame's edge may be smaller); without a prediction, the largest.
-  With a pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset
-  predicts Dimorphos, and a Dimorphos-sized blob that continues Dimorphos while that offset puts Didymos off the
-  image is Dimorphos alone (near C/A).
+- **Didymos** is the candidate holding the most light in Didymos's expected area (``aperture_dn8``: its brightest
+  pixels of that number above the threshold), among those within the orbit's reach of Dimorphos's predicted place;
+  when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
+  source (``light_spread_px2``: a star brighter than a small Didymos); without a prediction, the largest. With a
+  pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
+  Dimorphos, and a Dimorphos-sized blob that continues Dimorphos while that offset puts Didymos off the image is
+  Dimorphos alone (near C/A).
 - **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
-  trimmed to its brightest pixels of the expected area of both bodies (``trim``), the 8-connected parts of which
-  take its place. The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest
-  pixels of Dimorphos's expected area: the ejecta leave Dimorphos and fade away from it, so the brightest part of
-  the blob is the body. No threshold is tuned on a flyby: the areas come from the known sizes and the range.
+  trimmed to its brightest pixels of the expected area of both bodies, the 8-connected parts of which take its
+  place; a blob with room for both is split the same way when a part of it is Dimorphos (no larger than Dimorphos
+  can be, or larger, holding ejecta, at the trajectory's place when that place is closer than the orbit's radius).
+  The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest pixels of
+  Dimorphos's expected area, and of their parts the brightest by mean among those of at least a quarter of that
+  area (``trimmed``): the ejecta leave Dimorphos and fade away from it, and a star in the dust holds a few pixels.
+  No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
   a prediction: within ``dimorphos_max_separation_didymos_diameters`` of Didymos). A candidate there must be
-  bright like a body (peak at least ``dimorphos_min_peak_fraction`` of Didymos's) and not a piece of Didymos's
-  thin crescent. The one continuing the last pair's relative offset wins; else the one whose area is nearest the
-  expected Dimorphos area (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of Didymos).
+  bright like a body (the light of its best-lit quarter of Dimorphos's expected area at least
+  ``dimorphos_min_peak_fraction`` of Didymos's; without a prediction, its peak) and not a piece of Didymos's thin
+  crescent (beside its box and on its disc). The one continuing the last pair's relative offset wins; else the one
+  holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved
+  (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of Didymos).
 - **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
   its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
   the radius of a disc whose lit part has the region's area).
@@ -39,7 +46,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from obsw.config import ImagingConfig
-from obsw.imaging_geometry import FramePrediction, phase_offset_px
+from obsw.imaging_geometry import LIT_CENTROID_FACTOR, FramePrediction, phase_offset_px
 from obsw.imaging_labelling import Components, connected_components
 
 
@@ -77,6 +84,7 @@ class Regions:
     threshold_dn8: int
     part_pixels: dict[int, np.ndarray] = field(default_factory=dict)  # label of a part -> its foreground positions
     histograms: dict[str, np.ndarray] = field(default_factory=dict)  # "regions": each region's 8-bit histogram
+    linear8: np.ndarray | None = None  # the raw value each 8-bit code stands for (``light_spread_px2``)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
               image_size: int | None = None, cuts: tuple[int, ...] = (), min_area_px: int = 1) -> list[Blob]:
@@ -145,11 +153,47 @@ class Regions:
         return out
 
 
-def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int) -> Blob:
-    """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``):
-    a lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels
-    (ties: the larger, then raster order)."""
+def light_spread_px2(regions: Regions, blob: Blob) -> float:
+    """The spread of a blob's light: the variance, mean of both axes, px^2, of its pixels' positions weighted by
+    their light above the threshold (raw values, the 8-bit codes taken back through the compression table). A point
+    source spreads it as the point-spread function does; a resolved disc of radius r adds r^2 / 4."""
+    assert regions.linear8 is not None
+    sel = regions.pixels_of(blob)
+    w = regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8]
+    rows, cols = np.divmod(regions.components.pixel_index[sel], regions.width)
+    total = float(w.sum())
+    if total <= 0.0:
+        return 0.0
+    mc, mr = float(w @ cols) / total, float(w @ rows) / total
+    return 0.5 * (float(w @ ((cols - mc) ** 2)) + float(w @ ((rows - mr) ** 2))) / total
+
+
+def _must_be_resolved(radius_min_px: float, regions: Regions | None, cfg: ImagingConfig) -> bool:
+    """Whether a body of at least ``radius_min_px`` is resolved, its spread at least twice a point source's: a disc's
+    r^2 / 4 at least ``point_source_sigma_max_px`` squared (and the spread can be measured)."""
+    return regions is not None and regions.linear8 is not None \
+        and radius_min_px ** 2 / 4.0 >= cfg.point_source_sigma_max_px ** 2
+
+
+def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
+    """Whether a blob's light spreads no more than a point source's (``light_spread_px2``): a star. A blob wider than
+    a point source's image can be is not one, without measuring it: a Gaussian of sigma s with a peak of at most
+    2^16 times the threshold's level stays above it within s sqrt(2 ln 2^16) = 4.7 s of its centre."""
+    if blob.diameter_px > 2.0 * 4.7 * cfg.point_source_sigma_max_px + 2.0:
+        return False
+    return light_spread_px2(regions, blob) <= cfg.point_source_sigma_max_px ** 2
+
+
+def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None) -> Blob:
+    """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``): a
+    lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels. Only
+    parts of at least a quarter of ``n_pixels`` compete when there are any (a star or a speck of noise in the dust is
+    brighter than the surface but holds a few pixels), and with the body's predicted ``place``, only those there when
+    any is (ties: the larger, then raster order)."""
     parts = regions.parts(blob, n_pixels, first_label)
+    if place is not None:
+        parts = [p for p in parts if _distance(p.region_centroid_col_row, place.col_row) <= place.radius_px] or parts
+    parts = [p for p in parts if 4 * p.area_px >= n_pixels] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
 
 
@@ -164,6 +208,11 @@ class Expected:
     didymos_radius_max: float
     dimorphos_radius_max: float
     orbit_radius_max: float
+    didymos_radius: float = 0.0  # predicted apparent radii
+    dimorphos_radius: float = 0.0
+    radius_factor_max: float = 1.0  # apparent radii are at most this many times the predicted ones (and at least
+    # the predicted ones over it)
+    lit_shift_per_radius: tuple[float, float] = (0.0, 0.0)  # (col, row) lit centroid - centre, in apparent radii
 
 
 def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected | None:
@@ -171,7 +220,10 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
     if prediction is None or prediction.didymos_radius_px is None or prediction.dimorphos_radius_px is None \
             or prediction.orbit_radius_max_px is None:
         return None
-    lit = 0.5 * (1.0 - prediction.sun_camera[2])  # (1 + cos g) / 2, the body near the boresight: cos g = -sun_z
+    sx, sy, sz = prediction.sun_camera
+    cos_g = -sz  # the body near the boresight
+    d = math.hypot(sx, sy)
+    lit = 0.5 * (1.0 + cos_g)  # (1 + cos g) / 2
     b = cfg.blur_margin_px
     k = prediction.radius_factor_max
     r_did, r_dim = prediction.didymos_radius_px, prediction.dimorphos_radius_px
@@ -184,6 +236,12 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
         didymos_radius_max=k * r_did + b,
         dimorphos_radius_max=k * r_dim + b,
         orbit_radius_max=prediction.orbit_radius_max_px,
+        didymos_radius=r_did,
+        dimorphos_radius=r_dim,
+        radius_factor_max=k,
+        # the phase offset near the boresight (across the 2.9 deg field the phase angle changes by 1.5 deg at most)
+        lit_shift_per_radius=(LIT_CENTROID_FACTOR * (1.0 - cos_g) * sx / d, LIT_CENTROID_FACTOR * (1.0 - cos_g) * sy / d)
+        if d > 1e-12 else (0.0, 0.0),
     )
 
 
@@ -230,10 +288,17 @@ def _box_gap_px(a: Blob, b: Blob) -> int:
     return max(bx - (ax + aw), ax - (bx + bw), by - (ay + ah), ay - (by + bh), 0)
 
 
-def _piece_of_crescent(blob: Blob, didymos: Blob, cfg: ImagingConfig) -> bool:
+def _piece_of_crescent(blob: Blob, didymos: Blob, exp: Expected | None, cfg: ImagingConfig) -> bool:
     """Return whether ``blob`` may be a piece of Didymos's thin crescent broken off at the threshold: Didymos is
-    elongated and the blob lies within a few pixels of its box."""
-    return didymos.elongation >= cfg.crescent_min_elongation and _box_gap_px(blob, didymos) <= cfg.crescent_gap_px
+    elongated, the blob lies within a few pixels of its box and, with expected sizes, on Didymos's disc: within its
+    largest radius of its centre (its region centroid moved back from the lit part by the phase offset)."""
+    if didymos.elongation < cfg.crescent_min_elongation or _box_gap_px(blob, didymos) > cfg.crescent_gap_px:
+        return False
+    if exp is None:
+        return True
+    c, shift, r = didymos.region_centroid_col_row, exp.lit_shift_per_radius, exp.didymos_radius
+    centre = (c[0] - shift[0] * r, c[1] - shift[1] * r)
+    return _distance(blob.region_centroid_col_row, centre) <= exp.didymos_radius_max
 
 
 def _largest(blobs: list[Blob]) -> Blob:
@@ -241,13 +306,23 @@ def _largest(blobs: list[Blob]) -> Blob:
     return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
 
 
-def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None) -> Blob:
+def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig) -> Blob:
     """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
-    fainter clump of ejecta of its size or a small star; without sizes, the largest."""
+    fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
+    however bright (a star: ``_extended``); without sizes, the largest."""
     if exp is None or regions is None:
         return _largest(blobs)
     n = round(exp.didymos_area)
-    return max(blobs, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
+
+    def light(b: Blob) -> tuple[float, int, int]:
+        return (aperture_dn8(regions, b, n), b.area_px, -b.label)
+
+    best = max(blobs, key=light)
+    if _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg) \
+            and _point_source(regions, best, cfg):
+        # a star brighter than a small Didymos: the brightest extended candidate, if any
+        best = max([b for b in blobs if not _point_source(regions, b, cfg)] or blobs, key=light)
+    return best
 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
@@ -270,14 +345,14 @@ def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | 
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
                     prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None) -> Blob:
     """Didymos among the ``likely`` candidates (see the module docstring); ``cands`` are all candidates."""
-    didymos = _best_didymos(likely, exp, regions)
+    didymos = _best_didymos(likely, exp, regions, cfg)
     if prev_did is not None and prev_dim is not None:
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         predicted = _relative(prev_dim, prev_did)
         paired = [c for c in likely if any(
             d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in cands)]
         if paired:
-            didymos = _best_didymos(paired, exp, regions)
+            didymos = _best_didymos(paired, exp, regions, cfg)
     return didymos
 
 
@@ -353,11 +428,13 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         return exp is not None and b.area_px > exp.dimorphos_area_max
 
     if exp is not None and regions is not None:
-        n = round(exp.dimorphos_area)
-        least = cfg.dimorphos_min_peak_fraction * aperture_dn8(regions, didymos, n)
+        # the brightest quarter of Dimorphos's expected area on both: the part of each disc lit nearest normal
+        # incidence, whatever the phase and the shading law (a whole disc's mean is far lower at high phase)
+        best_lit = max(1, round(exp.dimorphos_area / 4))
+        least = cfg.dimorphos_min_peak_fraction * aperture_dn8(regions, didymos, best_lit)
 
         def bright(b: Blob) -> bool:
-            return aperture_dn8(regions, b, n) >= least
+            return aperture_dn8(regions, b, best_lit) >= least
     else:
         def bright(b: Blob) -> bool:
             return b.peak_dn8 >= cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
@@ -368,7 +445,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         and bright(b)
         and _near(b, origin, gate, oversized(b))
         and (place is None or _near(b, place.col_row, place.radius_px, oversized(b)))
-        and not _piece_of_crescent(b, didymos, cfg)
+        and not _piece_of_crescent(b, didymos, exp, cfg)
     ]
     if not in_gate:
         return None
@@ -382,9 +459,13 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     if exp is None or regions is None:
         sized = [b for b in in_gate if b.area_px <= cfg.dimorphos_max_area_fraction * didymos.area_px]
         return _largest(sized) if sized else None
-    # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star
+    # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star; and
+    # when it must be resolved, never a point source (a star, however bright: Dimorphos hidden or merged with Didymos)
     n = round(exp.dimorphos_area)
-    return max(in_gate, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label))
+    ranked = sorted(in_gate, key=lambda b: (aperture_dn8(regions, b, n), b.area_px, -b.label), reverse=True)
+    if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
+        return next((b for b in ranked if not _point_source(regions, b, cfg)), None)
+    return ranked[0]
 
 
 def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob], exp: Expected,
@@ -441,18 +522,21 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                                                    next_label)
     elif exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area:
         # room for both bodies: Dimorphos may be merged with Didymos, bridged by ejecta or the blur; a part of
-        # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos
+        # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos;
+        # so is a larger one (holding ejecta, trimmed below) where the trajectory puts Dimorphos, when it puts it
+        # closer than the orbit's radius (the place then tells Dimorphos from Didymos)
         split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label)
         found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions)
         if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
-                and found.area_px <= exp.dimorphos_area_max:
+                and (found.area_px <= exp.dimorphos_area_max
+                     or place is not None and place.radius_px < exp.orbit_radius_max):
             cands, likely, didymos, next_label = split
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
     if dimorphos is not None and exp is not None and regions is not None and (
             dimorphos.area_px > exp.dimorphos_area_max
             or dimorphos.trimmed_from and dimorphos.area_px > exp.dimorphos_area):
         # larger than Dimorphos can be, or cut out of a blob that held ejecta: keep its brightest part of its size
-        dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label)
+        dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
     return didymos, dimorphos
 
 

@@ -260,6 +260,23 @@ def render(scene: Scene, rng: np.random.Generator) -> Frame:
     return Frame(pixels=frame, scene=scene, truth=tuple(truth), body_map=owner)
 
 
+def noiseless_binned(scene: Scene, layer: int | str) -> np.ndarray:
+    """One noise-free layer of a frame above the bias, blurred by the PSF and binned to 512 x 512 by the block mean:
+    body ``layer`` (an index) alone, or the plume ('plume'); DN. For the bench's signal-to-noise and classes."""
+    size = scene.size_px
+    signal = np.zeros((size, size))
+    if layer == "plume":
+        if scene.plume is not None and len(scene.bodies) > 1:
+            signal = _plume(scene.plume, scene.bodies[1], size)
+    else:
+        cast = _cast(scene.bodies[int(layer)], scene.sun_camera, size)
+        if cast is not None:
+            radiance, _, (r0, r1, c0, c1) = cast
+            signal[r0:r1, c0:c1] = radiance
+    f = size // 512
+    return gaussian_filter(signal, scene.psf_sigma_px, mode="constant").reshape(512, f, 512, f).mean(axis=(1, 3))
+
+
 def _lit_area_unclipped(body: Ellipsoid, sun: np.ndarray) -> int:
     """Lit pixels of the body rendered alone on a frame large enough to hold it (for the off-frame count)."""
     a = max(body.semi_axes_px)
