@@ -121,4 +121,5 @@ def test_one_struct_codec_equals_item_by_item(packet: type[Packet], data: st.Dat
             got = packet.from_app_data(sub, r)
             r.end()
             return got
-        assert _outcome(read) == _item_by_item(read)
+        # by repr: a NaN field (a corrupted float) is equal to itself there, as its octets are
+        assert repr(_outcome(read)) == repr(_item_by_item(read))
