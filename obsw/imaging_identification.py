@@ -28,6 +28,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
+  A Didymos's region (of a disc larger than 4 blur margins) with room for both bodies, most of whose pixels are fainter than halfway from the
+  threshold to its surface's typical level (``_surface``), is cut to its pixels above that level, the largest
+  part being Didymos and the others candidates: a lit surface is mostly that bright, a fan of dust mostly not.
   No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
@@ -510,6 +513,22 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), next_label + len(parts)
 
 
+def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
+    """The candidate parts (``Regions.parts``) of a blob's pixels at least halfway from the threshold to the typical
+    level of Didymos's surface (the median of its brightest pixels of Didymos's expected area), when they are under
+    half of it: a lit surface is mostly that bright (its terminator and blurred limb are a thin fringe), a fan of
+    dust merged with it mostly not; [] otherwise."""
+    vals = regions.values8[regions.pixels_of(blob)]
+    n = min(round(exp.didymos_area), vals.size)
+    thr = regions.threshold_dn8
+    typical = float(np.median(np.partition(vals, vals.size - n)[vals.size - n:]))
+    m = int(np.count_nonzero(vals >= thr + 0.5 * (typical - thr)))
+    if 2 * m >= vals.size:
+        return []
+    return [p for p in regions.parts(blob, m, first_label)
+            if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
+
+
 def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
                     prediction: FramePrediction | None = None, regions: Regions | None = None
                     ) -> tuple[Blob | None, Blob | None]:
@@ -560,6 +579,15 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                 and (found.area_px <= exp.dimorphos_area_max
                      or place is not None and place.radius_px < exp.orbit_radius_max):
             cands, likely, didymos, next_label = split
+    if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
+            and exp.didymos_radius / exp.radius_factor_max > 4.0 * cfg.blur_margin_px:
+        # larger than Didymos alone and mostly fainter than its surface (a disc whose blurred fringe, 2 pi r b, is
+        # under half its area: a smaller one is mostly blur)
+        cut = _surface(regions, didymos, exp, cfg, next_label)
+        if cut:
+            cands = [c for c in cands if c is not didymos] + cut
+            didymos = max(cut, key=lambda b: (b.area_px, -b.label))
+            next_label = max(next_label, max(regions.part_pixels) + 1)
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
     if dimorphos is None and place is not None and exp is not None and regions is not None \
             and 2.0 * place.radius_px < exp.orbit_radius_max:
