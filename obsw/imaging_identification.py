@@ -28,9 +28,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
-  A Didymos's region (of a disc larger than 4 blur margins) with room for both bodies, most of whose pixels are fainter than halfway from the
-  threshold to its surface's typical level (``_surface``), is cut to its pixels above that level, the largest
-  part being Didymos and the others candidates: a lit surface is mostly that bright, a fan of dust mostly not.
+  A Didymos's region (of a disc larger than 4 blur margins) with room for both bodies, most of whose pixels are
+  fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
+  that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
+  of dust mostly not.
   No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
