@@ -28,7 +28,7 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
-  A Didymos's region (of a disc larger than 4 blur margins) with room for both bodies, most of whose pixels are
+  A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
   fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
   that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
   of dust mostly not.
@@ -581,9 +581,10 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                      or place is not None and place.radius_px < exp.orbit_radius_max):
             cands, likely, didymos, next_label = split
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
-            and exp.didymos_radius / exp.radius_factor_max > 4.0 * cfg.blur_margin_px:
-        # larger than Didymos alone and mostly fainter than its surface (a disc whose blurred fringe, 2 pi r b, is
-        # under half its area: a smaller one is mostly blur)
+            and exp.didymos_radius / exp.radius_factor_max > 8.0 * 4.7 * cfg.point_source_sigma_max_px:
+        # larger than Didymos alone and mostly fainter than its surface; for a disc whose blurred limb (within 4.7
+        # point-spread sigmas of its edge, see _point_source) is under a quarter of it: a smaller one, or a close
+        # pair blurred together, is mostly fringe
         cut = _surface(regions, didymos, exp, cfg, next_label)
         if cut:
             cands = [c for c in cands if c is not didymos] + cut
