@@ -15,8 +15,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
   source (``light_spread_px2``: a star brighter than a small Didymos); without a prediction, the largest. With a
   pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
-  Dimorphos, and a Dimorphos-sized blob that continues Dimorphos while that offset puts Didymos off the image is
-  Dimorphos alone (near C/A).
+  Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
+  of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
+  be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A).
 - **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
   trimmed to its brightest pixels of the expected area of both bodies, the 8-connected parts of which take its
   place; a blob with room for both is split the same way when a part of it is Dimorphos (no larger than Dimorphos
@@ -24,6 +25,13 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest pixels of
   Dimorphos's expected area, and of their parts the brightest by mean among those of at least a quarter of that
   area (``trimmed``): the ejecta leave Dimorphos and fade away from it, and a star in the dust holds a few pixels.
+  When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
+  radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
+  trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
+  A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
+  fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
+  that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
+  of dust mostly not.
   No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
@@ -65,7 +73,9 @@ class Blob:
     region_centroid_col_row: tuple[float, float]  # binary centroid of the region's pixels, px at binned scale
     trimmed_from: int = 0  # label of the region this is the brightest part of (0: a region of the binarised image)
     touches_edge: bool = False  # the region reaches the image's border (a body there may be cut)
-    cuts: tuple[int, ...] = ()  # the pixel counts it was cut to, in order, from its region (``Regions.parts``)
+    # the cuts that made it from its region, in order: a pixel count (its brightest pixels: ``Regions.parts``) or a
+    # disc (col, row, radius px: its pixels within it, ``Regions.within``)
+    cuts: tuple[int | tuple[float, float, float], ...] = ()
 
     @property
     def diameter_px(self) -> int:
@@ -87,7 +97,8 @@ class Regions:
     linear8: np.ndarray | None = None  # the raw value each 8-bit code stands for (``light_spread_px2``)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
-              image_size: int | None = None, cuts: tuple[int, ...] = (), min_area_px: int = 1) -> list[Blob]:
+              image_size: int | None = None, cuts: tuple[int | tuple[float, float, float], ...] = (),
+              min_area_px: int = 1) -> list[Blob]:
         """The Blob records of the components of at least ``min_area_px`` pixels (coordinates shifted by
         ``offset_col_row``); labels number every component."""
         c = self.components
@@ -134,20 +145,37 @@ class Regions:
         if vals.size <= n:
             return [blob]
         level = int(np.partition(vals, vals.size - n)[vals.size - n])
-        keep = np.flatnonzero(vals >= level)
-        pix = self.components.pixel_index[sel[keep]]
+        return self._cut(blob, sel[vals >= level], level - 1, first_label, n)
+
+    def within(self, blob: Blob, centre_col_row: tuple[float, float], radius_px: float, first_label: int
+               ) -> list[Blob]:
+        """The part of a blob within ``radius_px`` of a point, split into 8-connected parts, in raster order; []
+        when none of its pixels is there."""
+        sel = self.pixels_of(blob)
+        rows, cols = np.divmod(self.components.pixel_index[sel], self.width)
+        inside = np.hypot(cols - centre_col_row[0], rows - centre_col_row[1]) <= radius_px
+        if not inside.any():
+            return []
+        disc = (float(centre_col_row[0]), float(centre_col_row[1]), float(radius_px))
+        return self._cut(blob, sel[inside], self.threshold_dn8, first_label, disc)
+
+    def _cut(self, blob: Blob, sel: np.ndarray, threshold_dn8: int, first_label: int,
+             cut: int | tuple[float, float, float]) -> list[Blob]:
+        """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order) of a blob,
+        labelled from ``first_label``, their pixels kept by label."""
+        pix = self.components.pixel_index[sel]
         rows, cols = np.divmod(pix, self.width)
         left, top = int(cols.min()), int(rows.min())
         h, w = int(rows.max()) - top + 1, int(cols.max()) - left + 1
         crop = np.zeros((h, w), dtype=bool)
         crop[rows - top, cols - left] = True
         position = np.full((h, w), -1, dtype=np.int64)
-        position[rows - top, cols - left] = sel[keep]
+        position[rows - top, cols - left] = sel
         sub = connected_components(crop)
         flat_pos = position.reshape(-1)[sub.pixel_index]
-        part = Regions(sub, self.values8[flat_pos], w, level - 1)
+        part = Regions(sub, self.values8[flat_pos], w, threshold_dn8)
         out = part.blobs(first_label, (left, top), blob.trimmed_from or blob.label, image_size=self.width,
-                         cuts=blob.cuts + (n,))
+                         cuts=blob.cuts + (cut,))
         for j, b in enumerate(out):
             self.part_pixels[b.label] = flat_pos[sub.pixel_component == j]
         return out
@@ -351,6 +379,10 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
         predicted = _relative(prev_dim, prev_did)
         paired = [c for c in likely if any(
             d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in cands)]
+        if exp is not None and regions is not None:
+            n = round(exp.didymos_area)
+            least = 0.5 * aperture_dn8(regions, didymos, n)
+            paired = [c for c in paired if aperture_dn8(regions, c, n) >= least]
         if paired:
             didymos = _best_didymos(paired, exp, regions, cfg)
     return didymos
@@ -482,6 +514,22 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), next_label + len(parts)
 
 
+def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
+    """The candidate parts (``Regions.parts``) of a blob's pixels at least halfway from the threshold to the typical
+    level of Didymos's surface (the median of its brightest pixels of Didymos's expected area), when they are under
+    half of it: a lit surface is mostly that bright (its terminator and blurred limb are a thin fringe), a fan of
+    dust merged with it mostly not; [] otherwise."""
+    vals = regions.values8[regions.pixels_of(blob)]
+    n = min(round(exp.didymos_area), vals.size)
+    thr = regions.threshold_dn8
+    typical = float(np.median(np.partition(vals, vals.size - n)[vals.size - n:]))
+    m = int(np.count_nonzero(vals >= thr + 0.5 * (typical - thr)))
+    if 2 * m >= vals.size:
+        return []
+    return [p for p in regions.parts(blob, m, first_label)
+            if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
+
+
 def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
                     prediction: FramePrediction | None = None, regions: Regions | None = None
                     ) -> tuple[Blob | None, Blob | None]:
@@ -501,6 +549,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                          0 if regions is None else int(regions.components.area_px.size))
     biggest = max(cands, key=lambda b: (b.area_px, -b.label))
     if prev_did is not None and prev_dim is not None and previous.dimorphos is prev_dim \
+            and (exp is None or biggest.area_px <= exp.dimorphos_area_max) \
             and _continues_dimorphos_alone(biggest, prev_did, prev_dim, cfg):  # type: ignore[attr-defined]
         return None, biggest
     likely = cands
@@ -531,7 +580,34 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                 and (found.area_px <= exp.dimorphos_area_max
                      or place is not None and place.radius_px < exp.orbit_radius_max):
             cands, likely, didymos, next_label = split
+    if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
+            and exp.didymos_radius / exp.radius_factor_max > 8.0 * 4.7 * cfg.point_source_sigma_max_px:
+        # larger than Didymos alone and mostly fainter than its surface; for a disc whose blurred limb (within 4.7
+        # point-spread sigmas of its edge, see _point_source) is under a quarter of it: a smaller one, or a close
+        # pair blurred together, is mostly fringe
+        cut = _surface(regions, didymos, exp, cfg, next_label)
+        if cut:
+            cands = [c for c in cands if c is not didymos] + cut
+            didymos = max(cut, key=lambda b: (b.area_px, -b.label))
+            next_label = max(next_label, max(regions.part_pixels) + 1)
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
+    if dimorphos is None and place is not None and exp is not None and regions is not None \
+            and 2.0 * place.radius_px < exp.orbit_radius_max:
+        # Dimorphos merged with Didymos's region by ejecta brighter than its surface: the trajectory bounds where
+        # it is (well within the orbit), so the part of that region there, cut to its brightest pixels of
+        # Dimorphos's size and off Didymos's disc, is Dimorphos
+        root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
+        pieces = [p for p in regions.within(root, place.col_row, place.radius_px, next_label)
+                  if p.area_px >= cfg.min_body_area_px]
+        next_label += len(pieces)
+        if pieces:
+            piece = trimmed(regions, max(pieces, key=lambda b: (b.area_px, -b.label)), round(exp.dimorphos_area),
+                            next_label, place)
+            next_label = max(next_label, max(regions.part_pixels) + 1)
+            c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
+            centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
+            if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:
+                dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions)
     if dimorphos is not None and exp is not None and regions is not None and (
             dimorphos.area_px > exp.dimorphos_area_max
             or dimorphos.trimmed_from and dimorphos.area_px > exp.dimorphos_area):

@@ -168,7 +168,11 @@ def reference_blob(det: Detections, blob: Blob, ref: ReferenceResult
     x, y, w, h = blob.bbox_col_row_w_h
     pick = None
     for n in blob.cuts:
-        parts = reference_parts(ref, inside, n)
+        if isinstance(n, tuple):  # its pixels within a disc (Regions.within)
+            rows, cols = np.indices(inside.shape)
+            parts = reference_parts(ref, inside & (np.hypot(cols - n[0], rows - n[1]) <= n[2]), inside.size)
+        else:
+            parts = reference_parts(ref, inside, n)
         # the part that holds the reported blob: the most of its box
         pick = max(parts, key=lambda p: int(p[3][y:y + h, x:x + w].sum()))
         inside = pick[3]
