@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import select
 from contextlib import ExitStack
 import signal
 import subprocess
@@ -34,6 +35,20 @@ def _processes_mentioning(text: str) -> list[int]:
     return pids
 
 
+def _wait_for_exit(pids: list[int], timeout_s: float) -> None:
+    """Wait for each process to exit (its pidfd becomes readable: the event), up to ``timeout_s`` in all."""
+    deadline = time.monotonic() + timeout_s
+    for pid in pids:
+        try:
+            fd = os.pidfd_open(pid)
+        except ProcessLookupError:
+            continue  # gone already
+        try:
+            select.select([fd], [], [], max(deadline - time.monotonic(), 0.0))
+        finally:
+            os.close(fd)
+
+
 def _wait_for_progress(launcher: subprocess.Popen[str], mode: str) -> None:
     """Read the launcher's output until a progress line whose mode contains ``mode`` (each read blocks until the next
     line, the event waited on; pytest's timeout bounds a launcher that never prints one)."""
@@ -58,10 +73,8 @@ def test_ctrl_c_stops_everything(tmp_path: Path) -> None:
     text, _ = launcher.communicate(timeout=60)
     assert launcher.returncode == 130, text
     assert "interrupted" in text
-    deadline = time.monotonic() + 10  # generous: the launcher waited for its nodes before it exited
-    while (left := _processes_mentioning(str(out))) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert left == [], "orphan node processes"
+    _wait_for_exit(_processes_mentioning(str(out)), 10.0)  # generous: the launcher waited for its nodes already
+    assert _processes_mentioning(str(out)) == [], "orphan node processes"
 
 
 def test_garbage_messages_are_counted_and_survived(tmp_path: Path) -> None:
