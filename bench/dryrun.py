@@ -53,8 +53,9 @@ def main() -> None:
     early = load_scenario(SCENARIOS / "ground-early-knowledge.yaml")
     imaging = load_timeline(TIMELINE)
     with tempfile.TemporaryDirectory() as tmp:
-        records = {frames: Path(tmp) / f"{frames}-{STEP_RECORD}" for frames in ("reference", "raw")}
-        for frames, record in ({} if args.no_replay else records).items():
+        records = {} if args.no_replay else {frames: Path(tmp) / f"{frames}-{STEP_RECORD}"
+                                             for frames in ("reference", "raw")}
+        for frames, record in records.items():
             t0 = perf_counter()
             run_in_process(nominal, timeline, record=record, record_frames=frames)  # type: ignore[arg-type]
             print(f"recorded nominal run (image level, frames {frames}) in {perf_counter() - t0:.1f} s: "
@@ -68,8 +69,6 @@ def main() -> None:
                 early, imaging, jobs=args.jobs)
             items[f"the command: flyby ground --dry-run, nominal ({at_a_time} at a time), start to exit"] = \
                 lambda: _command(args.jobs)
-        if args.no_replay:
-            records.clear()
         if records:
             items["replay of the recorded nominal run, frames by reference (rendered again)"] = lambda: replay(
                 records["reference"])

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from obsw.control_kernels import error_quaternion, rotvec
+
 
 @njit(cache=True, nogil=True)
 def _mul(a: np.ndarray, b: np.ndarray, transpose_b: bool) -> np.ndarray:
@@ -119,21 +121,6 @@ def of_rotvec(v: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, nogil=True)
-def rotvec_between(q_from: np.ndarray, q_to: np.ndarray) -> np.ndarray:
-    """Rotation vector (body axes of ``q_from``, rad) of ``conj(q_from) (x) q_to``, the shorter way round."""
-    conj = np.empty(4)
-    conj[0], conj[1], conj[2], conj[3] = -q_from[0], -q_from[1], -q_from[2], q_from[3]
-    e = product(conj, q_to)
-    if e[3] < 0:
-        e = -e
-    v = e[:3].copy()
-    s = np.sqrt(np.dot(v, v))
-    if s < 1e-12:
-        return 2.0 * v
-    return v * (2.0 * np.arctan2(s, e[3]) / s)
-
-
-@njit(cache=True, nogil=True)
 def propagate(q: np.ndarray, p: np.ndarray, w: np.ndarray, dt_s: float, sigma_v: float,
               sigma_u: float) -> tuple[np.ndarray, np.ndarray]:
     """The attitude ``q`` turned by ``w dt_s`` (renormalised) and its error covariance carried (``predict``)."""
@@ -146,7 +133,7 @@ def correct(q: np.ndarray, bias: np.ndarray, p: np.ndarray, r: np.ndarray,
             q_meas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A star tracker solution ``q_meas`` (unit) taken: the attitude, bias and covariance after the update, and the
     innovation (rotation vector, body, rad)."""
-    z = rotvec_between(q, q_meas)
+    z = rotvec(error_quaternion(q_meas, q))  # conj(q) (x) q_meas: the innovation in body axes
     dx, p_new = update(p, r, z)
     out = product(q, of_rotvec(dx[:3].copy()))
     return out / np.sqrt(np.dot(out, out)), bias + dx[3:], p_new, z

@@ -226,16 +226,11 @@ class SpacecraftDynamics:
         for i in failed:
             motor_on[i] = 0.0
         x = np.concatenate((q, w, h))
-        segments = ((u_before, switch_s), (u_cmd, dt_s - switch_s)) if switch_s > 0.0 else ((u_cmd, dt_s),)
-        for u, span_s in segments:
-            if span_s == 0.0 and len(segments) > 1:
-                continue
+        # the torques held before the switch, then the new ones; a span of zero integrates nothing
+        for u, span_s in ((u_before, switch_s), (u_cmd, dt_s - switch_s)) if switch_s > 0.0 else ((u_cmd, dt_s),):
             u_held = np.minimum(np.maximum(u, -self.max_torque_nm), self.max_torque_nm) * motor_on
-            if span_s == 0.0:
-                n_sub = 0
-            else:
-                n_sub = max(math.ceil(span_s / self._max_substep_s - 1e-9),
-                            math.ceil(span_s * self._friction_rate_s / 0.5))
+            n_sub = 0 if span_s == 0.0 else max(math.ceil(span_s / self._max_substep_s - 1e-9),
+                                                 math.ceil(span_s * self._friction_rate_s / 0.5))
             hs = span_s / n_sub if n_sub else 0.0
             x = integrate(x, u_held, mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw,
                           self.max_momentum_nms, self._viscous, self._coulomb, 1.0 / self._smooth, n_sub, hs)
