@@ -1,6 +1,7 @@
 """A dispersed campaign of closed-loop flybys with the camera's detector on, scored by the report's scoring.
 
 Run: .venv/bin/python bench/imaging_campaign.py [--runs 100] [--jobs 2] [--seed 1] [--no-phase-correction]
+[--only K ...]
 
 Run k is the nominal scenario (configs/scenarios/nominal.yaml, the default detector of universe/config.py on) with
 seed k + 1 (every noise, ground's C/A knowledge, the asteroid shapes, the star field, the cosmic rays) and, drawn from
@@ -107,10 +108,15 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1, help="campaign seed")
     ap.add_argument("--no-phase-correction", action="store_true")
     ap.add_argument("--out", type=Path, default=None, help="write the runs' figures here (JSON)")
+    ap.add_argument("--only", type=int, nargs="+", default=None, metavar="K",
+                    help="run only these run numbers (0-based, as printed), e.g. to replay a failing run alone")
     args = ap.parse_args()
     correction = not args.no_phase_correction
+    ks = list(range(args.runs)) if args.only is None else sorted(set(args.only))
+    if any(k < 0 for k in ks):
+        ap.error("--only: run numbers start at 0")
     with ProcessPoolExecutor(max_workers=max(1, min(args.jobs, os.cpu_count() or 1))) as pool:
-        results = list(pool.map(run, range(args.runs), [args.seed] * args.runs, [correction] * args.runs))
+        results = list(pool.map(run, ks, [args.seed] * len(ks), [correction] * len(ks)))
     worst = np.array([r["worst_centroid_px"] for r in results if r["worst_centroid_px"] is not None])
     print(f"Dispersed campaign: {len(results)} nominal flybys, detector on, phase correction "
           f"{'on' if correction else 'off'} (campaign seed {args.seed})")
