@@ -395,6 +395,19 @@ class ImagingConfig(Config):
         description="the point-spread function widens a body's region above the threshold by about this much beyond "
         "its disc, px at 512 scale (a one-pixel Gaussian sigma at full resolution is half a binned pixel)",
     )
+    dimorphos_radius_margin_of_didymos: float = Field(
+        2.5,
+        ge=1,
+        description="Dimorphos's apparent radius is at most this many times Didymos's measured radius scaled by "
+        "their diameters' ratio (same range): both shapes (apparent radius up to 1.5 times the mean sphere's "
+        "for one, 1.5^2 = 2.25 for the pair at worst) and the diameters' knowledge (3 sigma, 10 %)",
+    )
+    didymos_sizing_min_radius_px: float = Field(
+        4.0,
+        gt=0,
+        description="Didymos's region measures the range (dimorphos_radius_margin_of_didymos) only when its radius "
+        "is at least this, px at 512 scale: a smaller one is mostly blurred limb",
+    )
     point_source_sigma_max_px: float = Field(
         0.67,
         gt=0,

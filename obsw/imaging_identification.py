@@ -212,13 +212,28 @@ def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
     return light_spread_px2(regions, blob) <= cfg.point_source_sigma_max_px ** 2
 
 
+def surface_pixels(regions: Regions, blob: Blob, n_pixels: int) -> int:
+    """How many of a blob's pixels are at least halfway from the threshold to its surface's typical level, the
+    median of its brightest ``n_pixels``: a lit surface is mostly that bright (its terminator and blurred limb are a
+    thin fringe), a fan of dust around it fainter."""
+    vals = regions.values8[regions.pixels_of(blob)]
+    n = min(max(1, int(n_pixels)), vals.size)
+    thr = regions.threshold_dn8
+    typical = float(np.median(np.partition(vals, vals.size - n)[vals.size - n:]))
+    return int(np.count_nonzero(vals >= thr + 0.5 * (typical - thr)))
+
+
 def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None) -> Blob:
-    """The brightest 8-connected part, by mean brightness, of a blob's brightest ``n_pixels`` (``Regions.parts``): a
-    lit surface is brighter than the dust around it, though a dense fan may hold more of the brightest pixels. Only
-    parts of at least a quarter of ``n_pixels`` compete when there are any (a star or a speck of noise in the dust is
-    brighter than the surface but holds a few pixels), and with the body's predicted ``place``, only those there when
-    any is (ties: the larger, then raster order)."""
-    parts = regions.parts(blob, n_pixels, first_label)
+    """The body of ``n_pixels`` expected pixels in a blob that holds more: of the 8-connected parts of its brightest
+    ``n_pixels``, or of its surface when that is fewer (``surface_pixels``, the level set by its best-lit quarter of
+    ``n_pixels``: a body smaller than expected still sets it; dust fainter than half the surface, brighter near the
+    body, does not pull the cut along it), the brightest by mean. A lit surface is brighter than the dust around it,
+    though a dense fan may hold more pixels. Only parts of at least a
+    quarter of ``n_pixels`` compete when there are any (a star or a speck of noise in the dust is brighter than the
+    surface but holds a few pixels), and with the body's predicted ``place``, only those there when any is (ties:
+    the larger, then raster order)."""
+    surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
+    parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
         parts = [p for p in parts if _distance(p.region_centroid_col_row, place.col_row) <= place.radius_px] or parts
     parts = [p for p in parts if 4 * p.area_px >= n_pixels] or parts
@@ -241,6 +256,7 @@ class Expected:
     radius_factor_max: float = 1.0  # apparent radii are at most this many times the predicted ones (and at least
     # the predicted ones over it)
     lit_shift_per_radius: tuple[float, float] = (0.0, 0.0)  # (col, row) lit centroid - centre, in apparent radii
+    lit_fraction: float = 1.0  # (1 + cos g) / 2: the lit part of a disc at phase angle g
 
 
 def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected | None:
@@ -267,6 +283,7 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
         didymos_radius=r_did,
         dimorphos_radius=r_dim,
         radius_factor_max=k,
+        lit_fraction=lit,
         # the phase offset near the boresight (across the 2.9 deg field the phase angle changes by 1.5 deg at most)
         lit_shift_per_radius=(LIT_CENTROID_FACTOR * (1.0 - cos_g) * sx / d, LIT_CENTROID_FACTOR * (1.0 - cos_g) * sy / d)
         if d > 1e-12 else (0.0, 0.0),
@@ -380,9 +397,14 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
         paired = [c for c in likely if any(
             d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in cands)]
         if exp is not None and regions is not None:
+            # comparable light, or a surface nearly as bright (its mean above the threshold at least three
+            # quarters of the best's): a clump of noise at a fan's edge is near the threshold and holds little
+            # light; a Didymos split from dust as bright as its surface may keep a small part of its light
             n = round(exp.didymos_area)
             least = 0.5 * aperture_dn8(regions, didymos, n)
-            paired = [c for c in paired if aperture_dn8(regions, c, n) >= least]
+            surface = 0.75 * (didymos.mean_dn8 - regions.threshold_dn8)
+            paired = [c for c in paired if aperture_dn8(regions, c, n) >= least
+                      or c.mean_dn8 - regions.threshold_dn8 >= surface]
         if paired:
             didymos = _best_didymos(paired, exp, regions, cfg)
     return didymos
@@ -515,19 +537,38 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
-    """The candidate parts (``Regions.parts``) of a blob's pixels at least halfway from the threshold to the typical
-    level of Didymos's surface (the median of its brightest pixels of Didymos's expected area), when they are under
-    half of it: a lit surface is mostly that bright (its terminator and blurred limb are a thin fringe), a fan of
-    dust merged with it mostly not; [] otherwise."""
-    vals = regions.values8[regions.pixels_of(blob)]
-    n = min(round(exp.didymos_area), vals.size)
-    thr = regions.threshold_dn8
-    typical = float(np.median(np.partition(vals, vals.size - n)[vals.size - n:]))
-    m = int(np.count_nonzero(vals >= thr + 0.5 * (typical - thr)))
-    if 2 * m >= vals.size:
+    """The candidate parts (``Regions.parts``) of a blob's surface (``surface_pixels`` with Didymos's expected
+    area) when it is under half of the blob: a fan of dust merged with a lit surface is mostly fainter; [] when
+    not."""
+    m = surface_pixels(regions, blob, round(exp.didymos_area))
+    if 2 * m >= blob.area_px:
         return []
     return [p for p in regions.parts(blob, m, first_label)
             if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
+
+
+def _sized_by_didymos(exp: Expected, didymos: Blob, cfg: ImagingConfig) -> Expected:
+    """``exp`` with Dimorphos's largest radius and area bounded by Didymos's measured size as well: both bodies are
+    at the same range (the orbit is 2 % of it at 55 km), so Dimorphos's apparent radius is at most
+    ``dimorphos_radius_margin_of_didymos`` times Didymos's measured one scaled by their diameters' ratio. Before
+    the trajectory is recognised the range is known to a factor of several and so, from the prediction alone, is
+    Dimorphos's size: a fan of dust holding Dimorphos passed for it. Only a whole, well-resolved Didymos region (not
+    cut, not at the image's edge, a measured radius of at least ``didymos_sizing_min_radius_px``) measures it; its
+    radius is that of a disc whose lit fraction has the region's area (larger with dust or blur: looser, not
+    tighter)."""
+    lit = exp.lit_fraction
+    if didymos.trimmed_from or didymos.cuts or didymos.touches_edge or exp.didymos_radius <= 0.0 or lit <= 0.0:
+        return exp
+    measured = math.sqrt(didymos.area_px / (math.pi * lit))
+    if measured < cfg.didymos_sizing_min_radius_px:
+        return exp
+    k = cfg.dimorphos_radius_margin_of_didymos * measured / exp.didymos_radius
+    if k >= exp.radius_factor_max:
+        return exp
+    r_max = k * exp.dimorphos_radius + cfg.blur_margin_px
+    area_max = math.pi * (r_max + 1.0) ** 2 * lit
+    return replace(exp, dimorphos_radius_max=min(exp.dimorphos_radius_max, r_max),
+                   dimorphos_area_max=min(exp.dimorphos_area_max, area_max))
 
 
 def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
@@ -590,6 +631,8 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
             cands = [c for c in cands if c is not didymos] + cut
             didymos = max(cut, key=lambda b: (b.area_px, -b.label))
             next_label = max(next_label, max(regions.part_pixels) + 1)
+    if exp is not None:
+        exp = _sized_by_didymos(exp, didymos, cfg)
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
     if dimorphos is None and place is not None and exp is not None and regions is not None \
             and 2.0 * place.radius_px < exp.orbit_radius_max:
@@ -610,8 +653,12 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions)
     if dimorphos is not None and exp is not None and regions is not None and (
             dimorphos.area_px > exp.dimorphos_area_max
-            or dimorphos.trimmed_from and dimorphos.area_px > exp.dimorphos_area):
-        # larger than Dimorphos can be, or cut out of a blob that held ejecta: keep its brightest part of its size
+            or dimorphos.area_px > exp.dimorphos_area and (
+                dimorphos.trimmed_from
+                or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * 4.7 * cfg.point_source_sigma_max_px)):
+        # larger than Dimorphos can be, cut out of a blob that held ejecta, or a resolved disc (the point-spread
+        # function's reach, see _point_source, under half its radius) larger than expected, perhaps with dust
+        # brighter than the threshold around it: keep its surface
         dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
     return didymos, dimorphos
 
