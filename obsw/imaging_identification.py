@@ -325,6 +325,14 @@ def _continues_dimorphos_alone(blob: Blob, prev_did: Blob, prev_dim: Blob, cfg: 
     return area_vs_dim < area_vs_did and not (0.0 <= col <= last and 0.0 <= row <= last)
 
 
+def _continues_pair(dimorphos: Blob, didymos: Blob, prev_did: Blob | None, prev_dim: Blob | None,
+                    cfg: ImagingConfig) -> bool:
+    """Whether a Dimorphos candidate sits where the last pair's relative offset puts it from this Didymos."""
+    if prev_did is None or prev_dim is None:
+        return False
+    return _distance(_relative(dimorphos, didymos), _relative(prev_dim, prev_did)) <= _relative_jump_px(didymos, cfg)
+
+
 def _box_gap_px(a: Blob, b: Blob) -> int:
     """Return the number of pixels between two bounding boxes along the axis that separates them most (0: touching
     or overlapping)."""
@@ -614,12 +622,14 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         # room for both bodies: Dimorphos may be merged with Didymos, bridged by ejecta or the blur; a part of
         # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos;
         # so is a larger one (holding ejecta, trimmed below) where the trajectory puts Dimorphos, when it puts it
-        # closer than the orbit's radius (the place then tells Dimorphos from Didymos)
+        # closer than the orbit's radius (the place then tells Dimorphos from Didymos), or where the last pair's
+        # offset puts it from the part taken for Didymos
         split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label)
         found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions)
         if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
                 and (found.area_px <= exp.dimorphos_area_max
-                     or place is not None and place.radius_px < exp.orbit_radius_max):
+                     or place is not None and place.radius_px < exp.orbit_radius_max
+                     or _continues_pair(found, split[2], prev_did, prev_dim, cfg)):
             cands, likely, didymos, next_label = split
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
             and exp.didymos_radius / exp.radius_factor_max > 8.0 * 4.7 * cfg.point_source_sigma_max_px:

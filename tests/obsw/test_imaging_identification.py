@@ -26,9 +26,9 @@ from tests.obsw.imaging_trials import (
 from tests.obsw.opencv_reference import reference_pipeline
 
 from obsw.config import ImagingConfig
-from obsw.imaging import FramePrediction, process_frame
+from obsw.imaging import Detections, FramePrediction, process_frame
 from obsw.imaging_filtering import linear_values
-from obsw.imaging_identification import Regions, light_spread_px2
+from obsw.imaging_identification import Regions, identify_bodies, light_spread_px2
 from obsw.imaging_labelling import connected_components
 
 CFG = ImagingConfig()
@@ -254,3 +254,109 @@ def test_didymos_merged_with_a_fainter_fan_is_its_surface(seed: int, k: int) -> 
     centroid is that of its pixels at least halfway to the surface's level, within the paper's 15 px, on the OpenCV
     region cut the same way (bench frames that put Didymos 22 and 80 px off)."""
     _assert_found(_bench_trial(seed, k), 0)
+
+
+def _dimorphos_in_a_fan(seed: int, dim_r: float, fan_dn: float, length_r: float) -> Scene:
+    """Didymos 240 px across (full resolution, 2400 DN surface), Dimorphos of radius ``dim_r`` 60 px beyond its limb
+    with a fan of dust from it (``fan_dn`` at Dimorphos, fading over ``length_r`` of its radii) pointing away from
+    Didymos, seen at 30 deg phase with the Sun on Didymos's side: no star, no defect."""
+    rng = np.random.default_rng([63, seed])
+    did_r, col, row = 120.0, 420.0, 512.0
+    a = rng.uniform(-0.5, 0.5)
+    d = did_r + dim_r + 60.0
+    q = (0.0, 0.0, 0.0, 1.0)
+    return Scene(
+        bodies=(Ellipsoid(col, row, 56e3, (did_r * 1.05, did_r, did_r * 0.95), q, 2400.0),
+                Ellipsoid(col + d * math.cos(a), row + d * math.sin(a), 55e3, (dim_r * 1.1, dim_r, dim_r * 0.9), q,
+                          2400.0)),
+        range_m=55e3, phase_deg=30.0, sun_azimuth_deg=180.0,
+        plume=Plume(axis_deg=math.degrees(a), half_angle_deg=35.0, length_px=length_r * dim_r, brightness_dn=fan_dn,
+                    exponent=0.8))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_fan_is_not_dimorphos_before_the_range_is_known(seed: int) -> None:
+    """Before the trajectory is recognised the range is known to a factor of 8, and from the prediction alone so is
+    Dimorphos's size: a faint fan holding a small Dimorphos fits it. Didymos's measured size bounds Dimorphos's (the
+    same range), and Dimorphos is found on itself, within 3 px, its region pulled along the fan by more than 5 px
+    (closed-loop campaign run 65: 28 px; the previous chain took the whole region, 28 px off)."""
+    scene = _dimorphos_in_a_fan(seed, 8.0, 250.0, 12.0)
+    rng = np.random.default_rng(seed)
+    p = prediction_for(scene, rng, None)
+    early = replace(p, radius_factor_max=8.0, orbit_radius_max_px=8.0 * p.orbit_radius_max_px)
+    t = run_trial(scene, seed, early)
+    _assert_found(t, 1)
+    assert t.dimorphos.error_px <= 3.0
+    region = next(b for b in t.detections.blobs if b.label == t.detections.dimorphos.trimmed_from)
+    assert math.dist(region.region_centroid_col_row, t.frame.truth[1].centre_512) > 5.0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_resolved_dimorphos_in_fainter_dust_is_its_surface(seed: int) -> None:
+    """A resolved Dimorphos (26 px across, binned) in a fan fainter than half its surface, their region within
+    Dimorphos's largest area: the centroid is that of its surface, within 3 px, the whole region's pulled more than
+    5 px along the fan (closed-loop campaign run 50: 13 px near C/A; the previous chain took the whole region, 10.6 px
+    off)."""
+    scene = _dimorphos_in_a_fan(seed, 26.0, 300.0, 2.5)
+    rng = np.random.default_rng(seed)
+    t = run_trial(scene, seed, prediction_for(scene, rng, 1.0))
+    _assert_found(t, 1)
+    assert t.dimorphos.error_px <= 3.0
+    region = next(b for b in t.detections.blobs if b.label == t.detections.dimorphos.trimmed_from)
+    assert math.dist(region.region_centroid_col_row, t.frame.truth[1].centre_512) > 5.0
+
+
+def _pair_in_a_bright_fan(seed: int, merged: bool) -> tuple[np.ndarray, tuple[float, float], tuple[float, float]]:
+    """A binned 8-bit 512 x 512 image drawn by hand: Didymos a disc of radius 4 at level 150 +- 6, Dimorphos an
+    unresolved point 10.5 px from it at the apex of a fan of dust pointing away from Didymos. Apart, the fan is
+    fainter than Didymos but near the apex (half-angle 40 deg, 14 px long, 175 fading to 100); ``merged``, a frame
+    later, it is brighter than Didymos over most of it (half-angle 30 deg, 10 px long, 185 fading to 140) and a band of
+    dust reaches Didymos's limb. Background 20 +- 3. Returns (image, Didymos's centre, Dimorphos's centre)."""
+    rng = np.random.default_rng([65, seed])
+    img = np.clip(rng.normal(20.0, 3.0, (512, 512)), 0, 255)
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    did = (266.0 + rng.uniform(-0.5, 0.5), 257.0 + rng.uniform(-0.5, 0.5))
+    dim = (did[0] - 10.5 * math.cos(a), did[1] - 10.5 * math.sin(a))
+    rows, cols = np.mgrid[0:512, 0:512]
+    disc = np.hypot(cols - did[0], rows - did[1]) <= 4.0
+    img[disc] = rng.normal(150.0, 6.0, int(disc.sum()))
+    r = np.hypot(cols - dim[0], rows - dim[1])
+    away = np.arctan2(rows - dim[1], cols - dim[0]) - math.atan2(dim[1] - did[1], dim[0] - did[0])
+    off = np.abs((away + math.pi) % (2.0 * math.pi) - math.pi)
+    fan = (r <= (10.0 if merged else 14.0)) & (off <= math.radians(30.0 if merged else 40.0))
+    img[fan] = np.maximum(img[fan], (185.0 - 45.0 * r[fan] / 10.0) if merged else (175.0 - 75.0 * r[fan] / 14.0))
+    if merged:  # a band of dust from the apex to Didymos's limb
+        t = np.clip(((cols - dim[0]) * (did[0] - dim[0]) + (rows - dim[1]) * (did[1] - dim[1])) / 10.5 ** 2, 0.0, 1.0)
+        near = np.hypot(cols - (dim[0] + t * (did[0] - dim[0])), rows - (dim[1] + t * (did[1] - dim[1]))) <= 1.5
+        img[near & ~disc] = np.maximum(img[near & ~disc], 90.0)
+    return img.astype(np.uint8), did, dim
+
+
+def _identify_drawn(img: np.ndarray, previous: object | None, did_r: float) -> tuple:  # noqa: ANN001
+    """identify_bodies on a drawn 8-bit image (threshold 35) with the early prediction: radii from a range known to a
+    factor of 1.9, Dimorphos's place unknown."""
+    thr = 35
+    comps = connected_components(img > thr)
+    regions = Regions(comps, img.reshape(-1)[comps.pixel_index], 512, thr, linear8=linear_values(CFG, 12))
+    prediction = FramePrediction(sun_camera=(0.0, 0.0, -1.0), didymos_radius_px=did_r,
+                                 dimorphos_radius_px=did_r * 164.0 / 780.0, radius_factor_max=1.9,
+                                 orbit_radius_max_px=1.9 * 1190.0 / 390.0 * did_r)
+    return identify_bodies(regions.blobs(min_area_px=CFG.min_body_area_px), CFG, previous, prediction, regions)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_continuity_keeps_didymos_split_from_dust_brighter_than_its_surface(seed: int) -> None:
+    """Didymos and a fan of dust from Dimorphos brighter than its surface, seen apart and then merged into one region:
+    the split's brightest pixels fall mostly in the dust, Didymos keeps a part nearly as bright as the best but with
+    little of its light, and continuity with the pair seen apart still finds Didymos on its disc, not the dust, and
+    Dimorphos at the fan's apex (closed-loop campaign runs 4, 29, 54 and 76 swapped them, and run 4 lost the
+    target)."""
+    apart, did, dim = _pair_in_a_bright_fan(seed, False)
+    d0, m0 = _identify_drawn(apart, None, 3.8)
+    assert d0 is not None and m0 is not None
+    assert math.dist(d0.region_centroid_col_row, did) <= 1.5 and math.dist(m0.region_centroid_col_row, dim) <= 4.0
+    previous = Detections((d0, m0), d0, m0, None, None, None, None, 35, 20, 3.0, 512, pair=(d0, m0))
+    merged, did, dim = _pair_in_a_bright_fan(seed, True)
+    d1, m1 = _identify_drawn(merged, previous, 3.8)
+    assert d1 is not None and m1 is not None
+    assert math.dist(d1.region_centroid_col_row, did) <= 4.0 and math.dist(m1.region_centroid_col_row, dim) <= 4.0
