@@ -309,9 +309,12 @@ def _relative(blob: Blob, origin: Blob) -> tuple[float, float]:
     return (a[0] - o[0], a[1] - o[1])
 
 
-def _relative_jump_px(didymos: Blob, cfg: ImagingConfig) -> float:
-    """Return the largest change between frames of the Dimorphos offset from this Didymos, px."""
-    return cfg.dimorphos_max_relative_jump_didymos_diameters * didymos.diameter_px + cfg.centroid_noise_px
+def _relative_jump_px(didymos: Blob, cfg: ImagingConfig, exp: Expected | None = None) -> float:
+    """Return the largest change between frames of the Dimorphos offset from this Didymos, px: a fraction of its
+    diameter, which is no larger than Didymos can be with a prediction (a fan of dust taken for Didymos would
+    otherwise open the gate to anything)."""
+    d = didymos.diameter_px if exp is None else min(didymos.diameter_px, 2.0 * exp.didymos_radius_max)
+    return cfg.dimorphos_max_relative_jump_didymos_diameters * d + cfg.centroid_noise_px
 
 
 def _continues_dimorphos_alone(blob: Blob, prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig) -> bool:
@@ -326,11 +329,12 @@ def _continues_dimorphos_alone(blob: Blob, prev_did: Blob, prev_dim: Blob, cfg: 
 
 
 def _continues_pair(dimorphos: Blob, didymos: Blob, prev_did: Blob | None, prev_dim: Blob | None,
-                    cfg: ImagingConfig) -> bool:
+                    cfg: ImagingConfig, exp: Expected | None) -> bool:
     """Whether a Dimorphos candidate sits where the last pair's relative offset puts it from this Didymos."""
     if prev_did is None or prev_dim is None:
         return False
-    return _distance(_relative(dimorphos, didymos), _relative(prev_dim, prev_did)) <= _relative_jump_px(didymos, cfg)
+    return _distance(_relative(dimorphos, didymos), _relative(prev_dim, prev_did)) \
+        <= _relative_jump_px(didymos, cfg, exp)
 
 
 def _box_gap_px(a: Blob, b: Blob) -> int:
@@ -403,7 +407,7 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         predicted = _relative(prev_dim, prev_did)
         paired = [c for c in likely if any(
-            d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg) for d in cands)]
+            d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg, exp) for d in cands)]
         if exp is not None and regions is not None:
             # comparable light, or a surface nearly as bright (its mean above the threshold at least three
             # quarters of the best's): a clump of noise at a fan's edge is near the threshold and holds little
@@ -513,7 +517,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         return None
     if prev_did is not None and prev_dim is not None:
         predicted = _relative(prev_dim, prev_did)
-        jump = _relative_jump_px(didymos, cfg)
+        jump = _relative_jump_px(didymos, cfg, exp)
         continuing = [b for b in in_gate if _distance(_relative(b, didymos), predicted) <= jump]
         if continuing:
             # a continuing Dimorphos may outgrow the area limits: the ejecta grow around it
@@ -629,7 +633,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
                 and (found.area_px <= exp.dimorphos_area_max
                      or place is not None and place.radius_px < exp.orbit_radius_max
-                     or _continues_pair(found, split[2], prev_did, prev_dim, cfg)):
+                     or _continues_pair(found, split[2], prev_did, prev_dim, cfg, exp)):
             cands, likely, didymos, next_label = split
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
             and exp.didymos_radius / exp.radius_factor_max > 8.0 * 4.7 * cfg.point_source_sigma_max_px:

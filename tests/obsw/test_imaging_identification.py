@@ -28,7 +28,7 @@ from tests.obsw.opencv_reference import reference_pipeline
 from obsw.config import ImagingConfig
 from obsw.imaging import Detections, FramePrediction, process_frame
 from obsw.imaging_filtering import linear_values
-from obsw.imaging_identification import Regions, identify_bodies, light_spread_px2
+from obsw.imaging_identification import Blob, Regions, _relative_jump_px, expected, identify_bodies, light_spread_px2
 from obsw.imaging_labelling import connected_components
 
 CFG = ImagingConfig()
@@ -360,3 +360,23 @@ def test_continuity_keeps_didymos_split_from_dust_brighter_than_its_surface(seed
     d1, m1 = _identify_drawn(merged, previous, 3.8)
     assert d1 is not None and m1 is not None
     assert math.dist(d1.region_centroid_col_row, did) <= 4.0 and math.dist(m1.region_centroid_col_row, dim) <= 4.0
+
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(2.0, 80.0), st.floats(1.0, 4.0), st.integers(1, 400))
+def test_continuity_gate_is_never_wider_than_didymos_can_be(did_r: float, k: float, width: int) -> None:
+    """Continuity's gate on the pair's offset is a fraction of the candidate Didymos's diameter, and with a
+    prediction never of more than Didymos's largest diameter: a fan of dust 400 px across taken for Didymos would
+    otherwise accept any piece within 200 px as Dimorphos continuing the pair (closed-loop campaign run 88: 15.8 px,
+    Dimorphos reported on Didymos's limb)."""
+    exp = expected(FramePrediction(sun_camera=(0.0, 0.0, -1.0), didymos_radius_px=did_r,
+                                   dimorphos_radius_px=did_r * 164.0 / 780.0, radius_factor_max=k,
+                                   orbit_radius_max_px=k * 1190.0 / 390.0 * did_r), CFG)
+    assert exp is not None
+    blob = Blob(label=1, area_px=width * width // 2, centroid_col_row=(256.0, 256.0),
+                bbox_col_row_w_h=(256 - width // 2, 256 - width // 2, width, width), mean_dn8=100.0, peak_dn8=150,
+                elongation=1.0, threshold_dn8=35, region_centroid_col_row=(256.0, 256.0))
+    largest = CFG.dimorphos_max_relative_jump_didymos_diameters * 2.0 * exp.didymos_radius_max + CFG.centroid_noise_px
+    assert _relative_jump_px(blob, CFG, exp) <= largest + 1e-9
+    assert _relative_jump_px(blob, CFG, exp) == pytest.approx(min(_relative_jump_px(blob, CFG), largest))
