@@ -203,11 +203,17 @@ def _must_be_resolved(radius_min_px: float, regions: Regions | None, cfg: Imagin
         and radius_min_px ** 2 / 4.0 >= cfg.point_source_sigma_max_px ** 2
 
 
+def psf_reach_px(cfg: ImagingConfig) -> float:
+    """How far from a point source its light stays above the threshold at most, px: a Gaussian of sigma s
+    (``point_source_sigma_max_px``) with a peak of at most 2^16 times the threshold's level stays above it within
+    s sqrt(2 ln 2^16) = 4.7 s of its centre."""
+    return 4.7 * cfg.point_source_sigma_max_px
+
+
 def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
     """Whether a blob's light spreads no more than a point source's (``light_spread_px2``): a star. A blob wider than
-    a point source's image can be is not one, without measuring it: a Gaussian of sigma s with a peak of at most
-    2^16 times the threshold's level stays above it within s sqrt(2 ln 2^16) = 4.7 s of its centre."""
-    if blob.diameter_px > 2.0 * 4.7 * cfg.point_source_sigma_max_px + 2.0:
+    a point source's image can be (twice ``psf_reach_px``) is not one, without measuring it."""
+    if blob.diameter_px > 2.0 * psf_reach_px(cfg) + 2.0:
         return False
     return light_spread_px2(regions, blob) <= cfg.point_source_sigma_max_px ** 2
 
@@ -228,10 +234,9 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     ``n_pixels``, or of its surface when that is fewer (``surface_pixels``, the level set by its best-lit quarter of
     ``n_pixels``: a body smaller than expected still sets it; dust fainter than half the surface, brighter near the
     body, does not pull the cut along it), the brightest by mean. A lit surface is brighter than the dust around it,
-    though a dense fan may hold more pixels. Only parts of at least a
-    quarter of ``n_pixels`` compete when there are any (a star or a speck of noise in the dust is brighter than the
-    surface but holds a few pixels), and with the body's predicted ``place``, only those there when any is (ties:
-    the larger, then raster order)."""
+    though a dense fan may hold more pixels. Only parts of at least a quarter of ``n_pixels`` compete when there are
+    any (a star or a speck of noise in the dust is brighter than the surface but holds a few pixels), and with the
+    body's predicted ``place``, only those there when any is (ties: the larger, then raster order)."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
@@ -259,6 +264,13 @@ class Expected:
     lit_fraction: float = 1.0  # (1 + cos g) / 2: the lit part of a disc at phase angle g
 
 
+def _largest_size(radius_px: float, k: float, lit: float, cfg: ImagingConfig) -> tuple[float, float]:
+    """A body's largest apparent radius and region area, binned px: radius k r + blur, area pi (k r + blur + 1)^2 times
+    the lit fraction (one pixel of digitisation)."""
+    r_max = k * radius_px + cfg.blur_margin_px
+    return r_max, math.pi * (r_max + 1.0) ** 2 * lit
+
+
 def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected | None:
     """The expected and largest areas of both bodies from a prediction with sizes; None without."""
     if prediction is None or prediction.didymos_radius_px is None or prediction.dimorphos_radius_px is None \
@@ -268,17 +280,18 @@ def expected(prediction: FramePrediction | None, cfg: ImagingConfig) -> Expected
     cos_g = -sz  # the body near the boresight
     d = math.hypot(sx, sy)
     lit = 0.5 * (1.0 + cos_g)  # (1 + cos g) / 2
-    b = cfg.blur_margin_px
     k = prediction.radius_factor_max
     r_did, r_dim = prediction.didymos_radius_px, prediction.dimorphos_radius_px
     a_min = float(cfg.min_body_area_px)
+    did_radius_max, did_area_max = _largest_size(r_did, k, lit, cfg)
+    dim_radius_max, dim_area_max = _largest_size(r_dim, k, lit, cfg)
     return Expected(
         didymos_area=max(math.pi * r_did ** 2 * lit, a_min),
         dimorphos_area=max(math.pi * r_dim ** 2 * lit, a_min),
-        didymos_area_max=math.pi * (k * r_did + b + 1.0) ** 2 * lit,
-        dimorphos_area_max=math.pi * (k * r_dim + b + 1.0) ** 2 * lit,
-        didymos_radius_max=k * r_did + b,
-        dimorphos_radius_max=k * r_dim + b,
+        didymos_area_max=did_area_max,
+        dimorphos_area_max=dim_area_max,
+        didymos_radius_max=did_radius_max,
+        dimorphos_radius_max=dim_radius_max,
         orbit_radius_max=prediction.orbit_radius_max_px,
         didymos_radius=r_did,
         dimorphos_radius=r_dim,
@@ -577,8 +590,7 @@ def _sized_by_didymos(exp: Expected, didymos: Blob, cfg: ImagingConfig) -> Expec
     k = cfg.dimorphos_radius_margin_of_didymos * measured / exp.didymos_radius
     if k >= exp.radius_factor_max:
         return exp
-    r_max = k * exp.dimorphos_radius + cfg.blur_margin_px
-    area_max = math.pi * (r_max + 1.0) ** 2 * lit
+    r_max, area_max = _largest_size(exp.dimorphos_radius, k, lit, cfg)
     return replace(exp, dimorphos_radius_max=min(exp.dimorphos_radius_max, r_max),
                    dimorphos_area_max=min(exp.dimorphos_area_max, area_max))
 
@@ -636,10 +648,10 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                      or _continues_pair(found, split[2], prev_did, prev_dim, cfg, exp)):
             cands, likely, didymos, next_label = split
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
-            and exp.didymos_radius / exp.radius_factor_max > 8.0 * 4.7 * cfg.point_source_sigma_max_px:
-        # larger than Didymos alone and mostly fainter than its surface; for a disc whose blurred limb (within 4.7
-        # point-spread sigmas of its edge, see _point_source) is under a quarter of it: a smaller one, or a close
-        # pair blurred together, is mostly fringe
+            and exp.didymos_radius / exp.radius_factor_max > 8.0 * psf_reach_px(cfg):
+        # larger than Didymos alone and mostly fainter than its surface; for a disc whose blurred limb (within
+        # psf_reach_px of its edge) is under a quarter of it: a smaller one, or a close pair blurred together, is
+        # mostly fringe
         cut = _surface(regions, didymos, exp, cfg, next_label)
         if cut:
             cands = [c for c in cands if c is not didymos] + cut
@@ -669,9 +681,9 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
             dimorphos.area_px > exp.dimorphos_area_max
             or dimorphos.area_px > exp.dimorphos_area and (
                 dimorphos.trimmed_from
-                or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * 4.7 * cfg.point_source_sigma_max_px)):
+                or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * psf_reach_px(cfg))):
         # larger than Dimorphos can be, cut out of a blob that held ejecta, or a resolved disc (the point-spread
-        # function's reach, see _point_source, under half its radius) larger than expected, perhaps with dust
+        # function's reach, psf_reach_px, under half its radius) larger than expected, perhaps with dust
         # brighter than the threshold around it: keep its surface
         dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
     return didymos, dimorphos
