@@ -45,9 +45,10 @@ def input_at(t_k: float, y_k: np.ndarray, slope: np.ndarray, limit_s: float,
              t: float) -> tuple[np.ndarray, np.ndarray]:
     """Input offset and its rate at loop time ``t`` on the line through ``y_k`` at ``t_k`` with ``slope``, held
     ``limit_s`` after ``t_k``."""
-    age = t - t_k
-    if age < limit_s:
-        return y_k + slope * age, slope.copy()
+    # against the knot t_k + limit_s as propagate() computes it: t - t_k < limit_s can round the other way at the
+    # knot itself, and the held piece would go on sloping for a whole period
+    if t < t_k + limit_s:
+        return y_k + slope * (t - t_k), slope.copy()
     return y_k + slope * limit_s, np.zeros(3)
 
 

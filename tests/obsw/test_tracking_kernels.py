@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
@@ -65,6 +65,9 @@ def _loop_matrix(kp: float, ki: float, sloping: bool) -> np.ndarray:
 @settings(max_examples=200, deadline=None)
 @given(c=vectors, i=vectors, y_k=vectors, slope=vectors, t_k=st.floats(-2.0, 0.0), age_limit=st.floats(0.05, 3.0),
        t0=st.floats(0.0, 3.0), dt=st.floats(0.0, 1.0), wn=st.floats(0.1, 2.0), zeta=st.floats(0.3, 2.0))
+# a knot where (t_k + limit) - t_k rounds below limit: the held piece went on sloping for the whole period
+@example(c=np.zeros(3), i=np.zeros(3), y_k=np.zeros(3), slope=np.array([0.0, 0.0, 1.0]), t_k=-0.9594919670090587,
+         age_limit=2.9999999999999996, t0=2.0, dt=1.0, wn=1.0, zeta=1.0)
 def test_propagation_is_the_exact_solution_of_the_loop(c: np.ndarray, i: np.ndarray, y_k: np.ndarray,
                                                        slope: np.ndarray, t_k: float, age_limit: float, t0: float,
                                                        dt: float, wn: float, zeta: float) -> None:
