@@ -260,6 +260,15 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
         ax.legend(loc="upper right", fontsize=8)
     ax_t.set_ylabel("C/A time error, s")
     ax_d.set_ylabel("C/A distance error, km")
+    offsets = [e for _, e in est if e.los_offset_in_plane_rad is not None]
+    if offsets:
+        b = np.asarray(data.scenario.universe.camera.boresight_body, dtype=float)
+        b = b / np.linalg.norm(b)
+        s.notes.append(f"line-of-sight offset solved on board (last estimate): in plane "
+                       f"{offsets[-1].los_offset_in_plane_rad * 1e3:+.3f} mrad, out of plane "
+                       f"{offsets[-1].los_offset_out_of_plane_rad * 1e3:+.3f} mrad; the true camera boresight is "
+                       f"{np.arccos(min(1.0, float(b[2]))) * 1e3:.3f} mrad off body +Z (x {b[0] * 1e3:+.3f}, "
+                       f"y {b[1] * 1e3:+.3f} mrad)")
     s.png = png_bytes(fig, cfg.plot_dpi)
     return s
 

@@ -11,7 +11,8 @@ reported once. Before the recognition is trusted every measurement is accepted. 
 A lock that creeps (the plume's centroid pulled away a little more each frame) passes that frame-to-frame test, so
 each line of sight is also judged by its residual from a reference continuous C/A estimate (``Prediction``), which
 only accepted lines of sight shape: a rigid body on a straight-line flyby stays on the line of sight that estimate
-predicts, to within the measurement noise (the centroid's, the attitude's and the estimate's own, combined) and the
+predicts (with the constant offsets of the measured line of sight it solves, a misaligned camera's: held at zero, a
+0.04 deg misalignment had true lines of sight refused near C/A), to within the measurement noise (the centroid's, the attitude's and the estimate's own, combined) and the
 apparent radius of Dimorphos (a centroid of the right blob lies on the body's disc). Beyond
 ``false_lock_residual_sigma`` of that noise past that radius the line of sight is refused. The reference is the
 estimate as it stood ``false_lock_reference_lag_s`` before the exposure (``ReferenceEstimates``), and during a run
@@ -24,13 +25,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from obsw.config import FdirConfig
-from obsw.recognition import measured_theta_rad, predicted_theta
+from obsw.recognition import ContinuousEstimate, measured_theta_rad, out_of_plane_rad, predicted_theta
 from obsw.tracking import offset_rotvec
 from obsw.trajectory import NominalTrajectory
 
@@ -50,27 +51,40 @@ class Prediction:
     """What the continuous C/A estimate predicts of the target's line of sight at the measurement's exposure."""
 
     theta_rad: float  # in-plane angle from the relative velocity (obsw.recognition.measured_theta_rad)
-    sigma_rad: float  # its one-sigma from the estimate's covariance
+    sigma_rad: float  # one-sigma of the predicted direction from the estimate's covariance, in and out of plane
     noise_rad: float  # one-sigma of the measurement: centroid and attitude combined
     radius_rad: float  # apparent radius of Dimorphos at the estimate's range
+    out_of_plane_rad: float = 0.0  # angle out of the flyby plane (obsw.recognition.out_of_plane_rad)
 
 
 @dataclass(frozen=True, slots=True)
 class Estimate:
     """A continuous C/A estimate as the recognition solved it from the lines of sight exposed up to
-    ``newest_obt_s``."""
+    ``newest_obt_s``, with the measured lines of sight's constant offsets (``obsw.recognition.ContinuousEstimate``)."""
 
     newest_obt_s: float
     ca_time_obt_s: float
     ca_distance_km: float
-    cov: NDArray[np.float64]  # 2x2: s^2, s km, km^2
+    cov: NDArray[np.float64]  # 2x2 in s, km; or 3x3 in s, km, rad with the in-plane offset
+    in_plane_offset_rad: float = 0.0
+    out_of_plane_offset_rad: float = 0.0
+    out_of_plane_sigma_rad: float = 0.0
+
+    @classmethod
+    def of(cls, newest_obt_s: float, e: ContinuousEstimate) -> Estimate:
+        """The recognition's continuous estimate ``e`` from lines of sight exposed up to ``newest_obt_s``."""
+        return cls(newest_obt_s, e.ca_time_obt_s, e.ca_distance_km, e.cov, e.in_plane_offset_rad,
+                   e.out_of_plane_offset_rad, e.out_of_plane_sigma_rad)
 
     def prediction(self, obt_s: float, speed_m_s: float, noise_rad: float, radius_m: float) -> Prediction:
-        """What this estimate predicts at ``obt_s`` of the line of sight to a body of ``radius_m``, measured with
-        ``noise_rad`` of one-sigma noise, on a flyby at ``speed_m_s``."""
-        theta, sigma = predicted_theta(self.ca_time_obt_s, self.ca_distance_km, self.cov, speed_m_s, obt_s)
+        """What this estimate predicts at ``obt_s`` of the measured line of sight to a body of ``radius_m``, measured
+        with ``noise_rad`` of one-sigma noise, on a flyby at ``speed_m_s``."""
+        theta, sigma = predicted_theta(self.ca_time_obt_s, self.ca_distance_km, self.cov, speed_m_s, obt_s,
+                                       self.in_plane_offset_rad)
         range_m = math.hypot(self.ca_distance_km * 1e3, speed_m_s * (obt_s - self.ca_time_obt_s))
-        return Prediction(theta_rad=theta, sigma_rad=sigma, noise_rad=noise_rad, radius_rad=radius_m / range_m)
+        return Prediction(theta_rad=theta, sigma_rad=math.hypot(sigma, self.out_of_plane_sigma_rad),
+                          noise_rad=noise_rad, radius_rad=radius_m / range_m,
+                          out_of_plane_rad=self.out_of_plane_offset_rad)
 
 
 class ReferenceEstimates:
@@ -95,16 +109,16 @@ class ReferenceEstimates:
 
     def shift(self, step_s: float) -> None:
         """On-board time stepped: the kept estimates' times move with it."""
-        self._kept = deque(Estimate(e.newest_obt_s + step_s, e.ca_time_obt_s + step_s, e.ca_distance_km, e.cov)
+        self._kept = deque(replace(e, newest_obt_s=e.newest_obt_s + step_s, ca_time_obt_s=e.ca_time_obt_s + step_s)
                            for e in self._kept)
 
 
 def residual_rad(trajectory: NominalTrajectory, prediction: Prediction, los: NDArray[np.float64]) -> float:
     """Angle between ``los`` (inertial unit vector) and the predicted line of sight: the in-plane residual from the
-    predicted angle and the out-of-plane angle (the flyby plane holds every line of sight), combined."""
+    predicted angle and the out-of-plane one (the flyby plane holds every true line of sight; a measured one is off it
+    by the estimated constant offset), combined."""
     in_plane = measured_theta_rad(trajectory, los) - prediction.theta_rad
-    out_of_plane = math.asin(max(-1.0, min(1.0, float(los @ trajectory.plane_normal))))
-    return math.hypot(in_plane, out_of_plane)
+    return math.hypot(in_plane, out_of_plane_rad(trajectory, los) - prediction.out_of_plane_rad)
 
 
 def residual_bound_rad(cfg: FdirConfig, prediction: Prediction) -> float:

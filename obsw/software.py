@@ -882,8 +882,7 @@ class FlightSoftware:
         newest = None if rec is None else rec.last_measurement_obt_s
         if rec is None or newest is None or rec.measurement_count < self.cfg.min_recognition_measurements:
             return None
-        t, d_km, cov = rec.continuous()
-        self.lock_gate.references.add(Estimate(newest, t, d_km, cov))
+        self.lock_gate.references.add(Estimate.of(newest, rec.continuous_estimate()))
         reference = self.lock_gate.reference(obt)
         assert reference is not None  # one was just added
         targets = self.cfg.targets
@@ -1046,12 +1045,13 @@ class FlightSoftware:
         if self.recognizer is not None and self.recognizer.measurement_count > 0 and obt >= self._estimate_next:
             self._estimate_next = obt + self.cfg.housekeeping_period_s
             gt, gd, mse = self.recognizer.best_grid()
-            ct, cd, cov = self.recognizer.continuous()
+            e = self.recognizer.continuous_estimate()
             self._send(pus.EstimateReport(
                 n_measurements=self.recognizer.measurement_count, grid_ca_obt_s=gt, grid_ca_distance_km=gd,
-                grid_mse_rad2=mse, continuous_ca_obt_s=ct, continuous_ca_distance_km=cd,
-                continuous_sigma_time_s=float(np.sqrt(cov[0, 0])), continuous_sigma_distance_km=float(np.sqrt(cov[1, 1]))),
-                obt)
+                grid_mse_rad2=mse, continuous_ca_obt_s=e.ca_time_obt_s, continuous_ca_distance_km=e.ca_distance_km,
+                continuous_sigma_time_s=float(np.sqrt(e.cov[0, 0])),
+                continuous_sigma_distance_km=float(np.sqrt(e.cov[1, 1])), los_offset_in_plane_rad=e.in_plane_offset_rad,
+                los_offset_out_of_plane_rad=e.out_of_plane_offset_rad), obt)
             sent += 1
         return sent
 

@@ -33,6 +33,7 @@ OUT_OF_VIEW_KS = range(-200, -191)  # 9 of the 300 frames in the window see no t
 IN_VIEW_EXPECTED = 291 / 300
 MAX_ERR_IN_WINDOW_DEG = 1.2
 PEAK_RATE_DEG_S = 7.3
+LOS_OFFSET_RAD = (2.5e-4, -1.0e-4)  # the on-board LOS offsets every EstimateReport carries
 CENTROID_OFFSET_PX = (3.0, 4.0)  # detection minus truth: 5 px
 SAVED_FRAME_KS = list(range(-240, 120, 18))  # 20 saved PNGs
 
@@ -126,7 +127,8 @@ def telemetry_reports(outlier_px: float | None) -> list[tuple[float, pus.TmRepor
             n_measurements=k + 61, grid_ca_obt_s=CA_OBT + (2.0 if before else 99.0),
             grid_ca_distance_km=CA_D_KM + (1.5 if before else 9.0), grid_mse_rad2=1e-8,
             continuous_ca_obt_s=CA_OBT + (-1.5 if before else 77.0), continuous_ca_distance_km=CA_D_KM - 0.75,
-            continuous_sigma_time_s=0.5, continuous_sigma_distance_km=0.2)))
+            continuous_sigma_time_s=0.5, continuous_sigma_distance_km=0.2,
+            los_offset_in_plane_rad=LOS_OFFSET_RAD[0], los_offset_out_of_plane_rad=LOS_OFFSET_RAD[1])))
     return sorted(out, key=lambda p: p[0])
 
 

@@ -14,7 +14,7 @@ from analysis.report import build_report, write_report
 from analysis.runfolder import RunFolderError
 from contracts import pus
 from ground.config import ReportConfig
-from tests.analysis.synthetic import CA_OBT, IN_VIEW_EXPECTED, make_run
+from tests.analysis.synthetic import CA_OBT, IN_VIEW_EXPECTED, LOS_OFFSET_RAD, make_run
 
 
 def test_requirement_verdicts_in_the_table(full_run) -> None:
@@ -46,6 +46,14 @@ def test_notes_tell_dimorphos_from_the_barycentre(full_run) -> None:
     assert "Didymos barycentre C/A (the scenario&#x27;s universe.flyby" in page
     table = re.search(r'<table id="ca-estimates">.*?</table>', page, re.S).group(0)
     assert table.count("<td>Dimorphos</td>") == 2 and table.count("<td>Didymos barycentre</td>") == 2
+
+
+def test_the_on_board_los_offset_is_shown_beside_the_true_boresight(full_run) -> None:
+    """The C/A estimates section states the last on-board LOS offsets (mrad) and the scenario's true boresight."""
+    _, path, _ = full_run
+    page = path.read_text()
+    assert (f"in plane {LOS_OFFSET_RAD[0] * 1e3:+.3f} mrad, out of plane {LOS_OFFSET_RAD[1] * 1e3:+.3f} mrad; the "
+            "true camera boresight is 0.000 mrad off body +Z") in page
 
 
 def test_scenario_report_config_is_used(tmp_path: Path) -> None:

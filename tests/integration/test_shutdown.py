@@ -35,6 +35,11 @@ def _processes_mentioning(text: str) -> list[int]:
     return pids
 
 
+def _default_sigint() -> None:
+    """In the child before exec: SIGINT back to its default action, so Python turns it into KeyboardInterrupt."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _wait_for_exit(pids: list[int], timeout_s: float) -> None:
     """Wait for each process to exit (its pidfd becomes readable: the event), up to ``timeout_s`` in all."""
     deadline = time.monotonic() + timeout_s
@@ -65,8 +70,10 @@ def _wait_for_progress(launcher: subprocess.Popen[str], mode: str) -> None:
 def test_ctrl_c_stops_everything(tmp_path: Path) -> None:
     """SIGINT to `flyby run` ends it with code 130 and no node process survives."""
     out = tmp_path / "run"
+    # a shell starts a background job with SIGINT ignored, and a child inherits that: give the launcher the default
     launcher = subprocess.Popen([sys.executable, "-m", "flyby.cli", "run", str(DATA / "operator.yaml"), "--realtime",
-                                 "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                                 "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                preexec_fn=_default_sigint)
     _wait_for_progress(launcher, "")  # the first progress line: the nodes are up and stepping
     assert len(_processes_mentioning(str(out))) >= 3
     launcher.send_signal(signal.SIGINT)

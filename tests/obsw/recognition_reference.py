@@ -1,6 +1,7 @@
-"""A plain numpy MAP estimate of the C/A time and distance (the flight code's before it was compiled), the reference
-the compiled ``obsw.recognition_kernels.solve`` is checked against: Gauss-Newton in sigmas of the prior, step halving,
-a wide then a tight residual gate, the covariance from the final inliers' Fisher information plus the prior's."""
+"""A plain numpy MAP estimate of the C/A time, distance and in-plane LOS offset (the flight code's before it was
+compiled, with the offset added), the reference the compiled ``obsw.recognition_kernels.solve`` is checked against:
+Gauss-Newton in sigmas of the prior, step halving, a wide then a tight residual gate, the covariance from the final
+inliers' Fisher information plus the prior's."""
 
 from __future__ import annotations
 
@@ -10,27 +11,27 @@ from numpy.typing import NDArray
 from obsw.config import RecognitionConfig
 
 
-def _theta(times: NDArray, t_ca: float, d_m: float, v: float) -> NDArray:
-    return np.arctan2(d_m, -v * (times - t_ca))
+def _theta(times: NDArray, p: NDArray, v: float) -> NDArray:
+    return np.arctan2(p[1], -v * (times - p[0])) + p[2]
 
 
-def _jacobian(times: NDArray, t_ca: float, d_m: float, v: float, scale: NDArray) -> NDArray:
-    tau = times - t_ca
-    r2 = d_m * d_m + (v * tau) ** 2
-    return np.column_stack([-v * d_m / r2 * scale[0], -v * tau / r2 * scale[1]])
+def _jacobian(times: NDArray, p: NDArray, v: float, scale: NDArray) -> NDArray:
+    tau = times - p[0]
+    r2 = p[1] * p[1] + (v * tau) ** 2
+    return np.column_stack([-v * p[1] / r2 * scale[0], -v * tau / r2 * scale[1], np.full(times.size, scale[2])])
 
 
-def reference_solve(times: NDArray, theta: NDArray, origin: tuple[float, float], sigma: tuple[float, float],
-                    start: tuple[float, float], v: float, cfg: RecognitionConfig) -> tuple[float, float, NDArray]:
-    """(C/A time s, C/A distance m, covariance in s^2, s m, m^2) from the measurements, prior and start."""
+def reference_solve(times: NDArray, theta: NDArray, origin: tuple[float, float, float],
+                    sigma: tuple[float, float, float], start: tuple[float, float, float], v: float,
+                    cfg: RecognitionConfig) -> tuple[NDArray, NDArray]:
+    """((C/A time s, C/A distance m, offset rad), covariance in s, m, rad) from the measurements, prior and start."""
     o = np.asarray(origin, dtype=float)
-    free = np.array([sigma[0] > 0, sigma[1] > 0])
+    free = np.asarray(sigma, dtype=float) > 0
     scale = np.where(free, sigma, 1.0)
     noise = cfg.angle_noise_rad
 
     def predict(x: NDArray, t: NDArray) -> NDArray:
-        p = o + x * scale
-        return _theta(t, p[0], p[1], v)
+        return _theta(t, o + x * scale, v)
 
     def gauss_newton(x: NDArray, t: NDArray, th: NDArray) -> NDArray:
         def cost(p: NDArray) -> float:
@@ -40,9 +41,8 @@ def reference_solve(times: NDArray, theta: NDArray, origin: tuple[float, float],
         current = cost(x)
         for _ in range(cfg.max_iterations):
             r = (th - predict(x, t)) / noise
-            p = o + x * scale
-            jac = _jacobian(t, p[0], p[1], v, scale)[:, free] / noise
-            step = np.zeros(2)
+            jac = _jacobian(t, o + x * scale, v, scale)[:, free] / noise
+            step = np.zeros(3)
             step[free] = np.linalg.solve(jac.T @ jac + np.eye(int(free.sum())), jac.T @ r - x[free])
             length = 1.0
             while True:
@@ -70,8 +70,8 @@ def reference_solve(times: NDArray, theta: NDArray, origin: tuple[float, float],
             x = gauss_newton(x, times[inliers], theta[inliers])
     inliers = np.abs(theta - predict(x, times)) <= tight
     p = o + x * scale
-    jac = _jacobian(times[inliers], p[0], p[1], v, scale) / noise
+    jac = _jacobian(times[inliers], p, v, scale) / noise
     info = jac[:, free].T @ jac[:, free] + np.eye(int(free.sum()))
-    cov = np.zeros((2, 2))
+    cov = np.zeros((3, 3))
     cov[np.ix_(free, free)] = np.linalg.inv(info)
-    return float(p[0]), float(p[1]), np.diag(scale) @ cov @ np.diag(scale)
+    return p, np.diag(scale) @ cov @ np.diag(scale)

@@ -115,21 +115,35 @@ def _los(t: float, drift_rad: float, rng: np.random.Generator) -> np.ndarray:
     return noise.apply(Rotation.from_rotvec(drift_rad * TRAJ.plane_normal).apply(TRUE_FLYBY.los_inertial(t)))
 
 
-def _flyby(drift_deg_s: float, seed: int = 3) -> tuple[TrajectoryRecognizer, list[tuple[float, float, bool, float]]]:
-    """Lines of sight of TRUE_FLYBY at 1 Hz from C/A-240 s to C/A-30 s, creeping by ``drift_deg_s`` in the plane from
-    C/A-120 s, each judged by the gate against the reference estimate as on board. The recognition of those accepted
-    and, per line of sight, (time, drift rad, accepted, newest line of sight of the reference estimate)."""
+def _misaligned_los(t: float, camera_to_body: Rotation, rng: np.random.Generator) -> np.ndarray:
+    """TRUE_FLYBY's line of sight at ``t`` as a camera turned by ``camera_to_body`` from its nominal axes measures it
+    (taking camera axes for body axes), on the attitude the tracking holds (boresight +Z on the nominal TRAJ's line of
+    sight, body +Y on the plane's normal), with 1e-4 rad of noise on each axis."""
+    z, y = TRAJ.los_inertial(t), TRAJ.plane_normal
+    body = Rotation.from_matrix(np.column_stack([np.cross(y, z), y, z]))
+    in_camera = (body * camera_to_body).inv().apply(TRUE_FLYBY.los_inertial(t))
+    noise = Rotation.from_rotvec(np.array([*rng.normal(0.0, NOISE_RAD, 2), 0.0]))
+    return body.apply(noise.apply(in_camera))
+
+
+def _flyby(drift_deg_s: float, seed: int = 3, rec_cfg: RecognitionConfig = REC_CFG,
+           camera_to_body: Rotation | None = None,
+           times: np.ndarray = np.arange(1003.0 - 240.0, 1003.0 - 30.0, 1.0),
+           ) -> tuple[TrajectoryRecognizer, list[tuple[float, float, bool, float]]]:
+    """Lines of sight of TRUE_FLYBY at ``times`` (1 Hz from C/A-240 s to C/A-30 s), creeping by ``drift_deg_s`` in
+    the plane from C/A-120 s or measured by a misaligned camera, each judged by the gate against the reference
+    estimate as on board. The recognition of those accepted and, per line of sight, (time, drift rad, accepted,
+    newest line of sight of the reference estimate)."""
     rng = np.random.default_rng(seed)
-    rec = TrajectoryRecognizer(PRIOR, REC_CFG)
+    rec = TrajectoryRecognizer(PRIOR, rec_cfg)
     gate = LockGate(CFG)
     seen = []
-    for t in np.arange(1003.0 - 240.0, 1003.0 - 30.0, 1.0):
+    for t in times:
         drift = math.radians(drift_deg_s * max(t - CREEP_START, 0.0))
-        los = _los(t, drift, rng)
+        los = _los(t, drift, rng) if camera_to_body is None else _misaligned_los(t, camera_to_body, rng)
         prediction, newest = None, math.nan
         if rec.measurement_count >= 10:
-            t_ca, d_km, cov = rec.continuous()
-            gate.references.add(Estimate(float(rec.last_measurement_obt_s or 0.0), t_ca, d_km, cov))
+            gate.references.add(Estimate.of(float(rec.last_measurement_obt_s or 0.0), rec.continuous_estimate()))
             reference = gate.reference(t)
             assert reference is not None
             prediction = reference.prediction(t, TRAJ.speed_m_s, NOISE_RAD, DIMORPHOS_RADIUS_M)
@@ -150,17 +164,50 @@ def test_noise_alone_is_never_refused_and_the_flyby_is_recognised() -> None:
     assert abs(t_ca - TRUE_FLYBY.ca_time_obt_s) < 3.0 * math.sqrt(cov[0, 0])
 
 
-def test_a_creeping_lock_is_refused_against_an_estimate_from_before_it() -> None:
-    """A creep of 0.002 deg/s from C/A-120 s is never refused inside the radius plus 5 sigma, is refused before it
-    passes the radius plus 10 sigma, and through that run of refusals (over 20 s) it is judged against an estimate of
-    lines of sight exposed before it began."""
-    _, seen = _flyby(DRIFT_DEG_S)
+def _creep(offset_sigma_rad: float) -> tuple[list[tuple[float, float, bool, float]], int]:
+    """The creeping flyby judged with an estimate solving for a LOS offset of prior ``offset_sigma_rad`` (0: held),
+    and the index of its first refusal, checked to come after every line of sight within the radius plus 5 sigma."""
+    _, seen = _flyby(DRIFT_DEG_S, rec_cfg=RecognitionConfig(angle_noise_rad=NOISE_RAD,
+                                                            los_offset_sigma_rad=offset_sigma_rad))
     radius = [DIMORPHOS_RADIUS_M / float(TRUE_FLYBY.range_m(t)) for t, *_ in seen]
     assert all(ok for (_, drift, ok, _), r in zip(seen, radius, strict=True) if drift <= r + 5.0 * NOISE_RAD)
     first = next(i for i, (_, _, ok, _) in enumerate(seen) if not ok)
-    assert seen[first][1] <= radius[first] + 10.0 * NOISE_RAD
+    return seen, first
+
+
+def test_a_creeping_lock_is_refused_against_an_estimate_from_before_it() -> None:
+    """With the LOS offset held at zero (the paper's estimate), a creep of 0.002 deg/s from C/A-120 s is never refused
+    inside the radius plus 5 sigma, is refused before it passes the radius plus 10 sigma, and through that run of
+    refusals (over 20 s) it is judged against an estimate of lines of sight exposed before it began."""
+    seen, first = _creep(0.0)
+    assert seen[first][1] <= DIMORPHOS_RADIUS_M / float(TRUE_FLYBY.range_m(seen[first][0])) + 10.0 * NOISE_RAD
     run = seen[first:first + next(i for i, (_, _, ok, _) in enumerate(seen[first:]) if ok)]
     assert len(run) > 20 and all(newest < CREEP_START for *_, newest in run)
+
+
+def test_a_creeping_lock_is_refused_to_the_end_when_the_offset_is_solved() -> None:
+    """With the LOS offset solved (the default), the same creep is refused later, before it passes the radius plus
+    20 sigma: the offset's prior leaves the prediction 30 s ahead less certain at C/A-100 s, so the creep reaches the
+    bound after the lag and the reference holds part of it. Once refused it is never taken again up to C/A-30 s."""
+    seen, first = _creep(RecognitionConfig().los_offset_sigma_rad)
+    assert seen[first][1] <= DIMORPHOS_RADIUS_M / float(TRUE_FLYBY.range_m(seen[first][0])) + 20.0 * NOISE_RAD
+    assert not any(ok for _, _, ok, _ in seen[first:]) and len(seen) - first > 20
+
+
+@pytest.mark.parametrize("azimuth_deg", [0.0, 60.0, 135.0, 270.0])
+def test_a_misaligned_camera_is_never_refused_through_ca(azimuth_deg: float) -> None:
+    """A camera misaligned by 0.04 deg (twice the prior's sigma) about any axis across the boresight: with the LOS
+    offset solved, no line of sight from C/A-240 s to C/A+20 s (2 Hz from C/A-30 s) is refused; held at zero, an
+    in-plane part biases the C/A estimate and lines of sight near C/A are refused (the failure of dispersed runs)."""
+    axis = np.array([math.cos(math.radians(azimuth_deg)), math.sin(math.radians(azimuth_deg)), 0.0])
+    camera_to_body = Rotation.from_rotvec(math.radians(0.04) * axis)
+    times = np.concatenate([np.arange(1003.0 - 240.0, 1003.0 - 30.0, 1.0), np.arange(1003.0 - 30.0, 1023.0, 0.5)])
+    _, seen = _flyby(0.0, camera_to_body=camera_to_body, times=times)
+    assert all(ok for _, _, ok, _ in seen)
+    if abs(math.sin(math.radians(azimuth_deg))) > 0.5:  # a rotation about body +Y moves the LOS within the plane
+        _, held = _flyby(0.0, rec_cfg=RecognitionConfig(angle_noise_rad=NOISE_RAD, los_offset_sigma_rad=0.0),
+                         camera_to_body=camera_to_body, times=times)
+        assert not all(ok for _, _, ok, _ in held)
 
 
 def test_the_reference_is_the_estimate_lag_before_and_held_through_a_run_of_refusals() -> None:

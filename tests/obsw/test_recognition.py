@@ -137,24 +137,29 @@ def test_mse_grid_equals_a_brute_force_recomputation() -> None:
 
 @pytest.mark.parametrize("seed", range(4))
 def test_continuous_estimate_is_within_its_noise_bound(seed: int) -> None:
-    """The continuous C/A time and distance are within 4 sigma of the truth, sigma from the Cramer-Rao bound."""
+    """The continuous C/A time, distance and LOS offset are within 4 sigma of the truth, sigma from the Cramer-Rao
+    bound."""
     truth = NOMINAL.with_ca(1013.0, 50.9)
-    t, d, cov = _fed(truth, seed).continuous()
-    # Cramer-Rao bound computed here from finite differences of theta and the ground prior
-    h_t, h_d = 1e-3, 1e-3
+    est = _fed(truth, seed).continuous_estimate()
+    # Cramer-Rao bound computed here from finite differences of theta and the priors (the offset's: a constant), at
+    # the estimate (with three parameters the information changes by 0.2 % between it and the truth)
+    h_t, h_d, t0, d0 = 1e-3, 1e-3, est.ca_time_obt_s, est.ca_distance_km
     jac = np.column_stack(
         [
-            (truth.with_ca(1013.0 + h_t, 50.9).theta_rad(TIMES) - truth.with_ca(1013.0 - h_t, 50.9).theta_rad(TIMES))
-            / (2 * h_t),
-            (truth.with_ca(1013.0, 50.9 + h_d).theta_rad(TIMES) - truth.with_ca(1013.0, 50.9 - h_d).theta_rad(TIMES))
-            / (2 * h_d),
+            (truth.with_ca(t0 + h_t, d0).theta_rad(TIMES) - truth.with_ca(t0 - h_t, d0).theta_rad(TIMES)) / (2 * h_t),
+            (truth.with_ca(t0, d0 + h_d).theta_rad(TIMES) - truth.with_ca(t0, d0 - h_d).theta_rad(TIMES)) / (2 * h_d),
+            np.ones(TIMES.size),
         ]
     )
-    crb = np.linalg.inv(jac.T @ jac / SIGMA**2 + np.diag([1 / 100.0, 1 / 25.0]))
-    assert np.allclose(cov, crb, rtol=1e-3)
-    assert abs(t - 1013.0) < 4 * np.sqrt(crb[0, 0])
-    assert abs(d - 50.9) < 4 * np.sqrt(crb[1, 1])
-    assert np.sqrt(crb[0, 0]) < 0.05 and np.sqrt(crb[1, 1]) < 0.05  # tens of ms and tens of metres
+    crb = np.linalg.inv(jac.T @ jac / SIGMA**2 + np.diag([1 / 100.0, 1 / 25.0, 1 / CFG.los_offset_sigma_rad**2]))
+    assert np.allclose(est.cov, crb, rtol=1e-3)
+    assert abs(est.ca_time_obt_s - 1013.0) < 4 * np.sqrt(crb[0, 0])
+    assert abs(est.ca_distance_km - 50.9) < 4 * np.sqrt(crb[1, 1])
+    assert abs(est.in_plane_offset_rad) < 4 * np.sqrt(crb[2, 2])
+    assert abs(est.out_of_plane_offset_rad) < 4 * est.out_of_plane_sigma_rad
+    assert np.sqrt(crb[0, 0]) < 0.1 and np.sqrt(crb[1, 1]) < 0.1  # tens of ms and tens of metres
+    t, d, cov = _fed(truth, seed).continuous()
+    assert (t, d) == (est.ca_time_obt_s, est.ca_distance_km) and np.array_equal(cov, est.cov[:2, :2])
 
 
 def test_continuous_estimate_matches_scipy_least_squares() -> None:
@@ -168,15 +173,66 @@ def test_continuous_estimate_matches_scipy_least_squares() -> None:
         rec.add_measurement(float(t), los)
         theta.append(measured_theta_rad(NOMINAL, los))
     theta_arr = np.asarray(theta)
+    s_e = CFG.los_offset_sigma_rad
 
     def residuals(p: np.ndarray) -> np.ndarray:
-        model = NOMINAL.with_ca(p[0], p[1]).theta_rad(TIMES)
-        return np.concatenate([(theta_arr - model) / SIGMA, [(p[0] - 1000.0) / 10.0, (p[1] - 55.0) / 5.0]])
+        model = NOMINAL.with_ca(p[0], p[1]).theta_rad(TIMES) + p[2]
+        return np.concatenate([(theta_arr - model) / SIGMA, [(p[0] - 1000.0) / 10.0, (p[1] - 55.0) / 5.0, p[2] / s_e]])
 
-    ref = least_squares(residuals, x0=[1000.0, 55.0], x_scale=[10.0, 5.0], xtol=1e-14, ftol=1e-14, gtol=1e-14)
-    t, d, _ = rec.continuous()
-    assert t == pytest.approx(ref.x[0], abs=1e-6)
-    assert d == pytest.approx(ref.x[1], abs=1e-6)
+    ref = least_squares(residuals, x0=[1000.0, 55.0, 0.0], x_scale=[10.0, 5.0, s_e], xtol=1e-15, ftol=1e-15,
+                        gtol=1e-15)
+    est = rec.continuous_estimate()
+    assert est.ca_time_obt_s == pytest.approx(ref.x[0], abs=1e-6)
+    assert est.ca_distance_km == pytest.approx(ref.x[1], abs=1e-6)
+    assert est.in_plane_offset_rad == pytest.approx(ref.x[2], abs=1e-9)
+
+
+def _tracking_attitude(t: float) -> Rotation:
+    """Body -> inertial as the tracking loop holds it: the boresight (+Z) on the ground nominal's line of sight, body
+    +Y on the flyby plane's normal."""
+    z = NOMINAL.los_inertial(t)
+    y = NOMINAL.plane_normal
+    return Rotation.from_matrix(np.column_stack([np.cross(y, z), y, z]))
+
+
+def _misaligned_los(truth: NominalTrajectory, t: float, camera_to_body: Rotation,
+                    rng: np.random.Generator) -> np.ndarray:
+    """The LOS the OBSW forms with a camera turned by ``camera_to_body`` from its nominal axes (it takes camera axes
+    for body axes), on the tracking attitude, with centroid and attitude noise."""
+    q_true = _tracking_attitude(t)
+    los_camera = (q_true * camera_to_body).inv().apply(truth.los_inertial(t))
+    los_camera = los_camera + np.array([*rng.normal(0.0, CENTROID_SIGMA, 2), 0.0]) * los_camera[2]
+    q_est = q_true * Rotation.from_rotvec(rng.normal(0.0, ATTITUDE_SIGMA, 3))
+    return q_est.apply(los_camera / np.linalg.norm(los_camera))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_misaligned_camera_is_estimated_and_leaves_the_ca_time_unbiased(seed: int) -> None:
+    """A camera misaligned by 0.04 deg (twice the prior's sigma) about an axis across the boresight: the estimate's
+    LOS offsets are the misalignment's in-plane and out-of-plane parts within 4 sigma, and the C/A time is within 4
+    sigma of the truth; holding the offset at zero (the paper's estimate), an in-plane part of at least half the
+    misalignment puts the C/A time beyond 4 sigma (20 to 44 sigma)."""
+    truth = NOMINAL.with_ca(1006.0, 53.0)
+    rng = np.random.default_rng(seed)
+    azimuth = np.radians(rng.uniform(30.0, 150.0) + 180.0 * rng.integers(2))  # a rotation about body X is out of plane
+    axis = np.array([np.cos(azimuth), np.sin(azimuth), 0.0])
+    camera_to_body = Rotation.from_rotvec(np.radians(0.04) * axis)
+    # the camera's +Z in body axes: off +Z towards +X turns the measured angle within the plane, towards +Y out of it
+    z_body = camera_to_body.apply([0.0, 0.0, 1.0])
+    recs = {sigma: TrajectoryRecognizer(NOMINAL, RecognitionConfig(angle_noise_rad=SIGMA,
+                                                                   los_offset_sigma_rad=sigma)) for sigma in (3.5e-4, 0.0)}
+    for t in TIMES:
+        los = _misaligned_los(truth, float(t), camera_to_body, rng)
+        for rec in recs.values():
+            rec.add_measurement(float(t), los)
+    est = recs[3.5e-4].continuous_estimate()
+    # theta grows from the approach direction towards -e_ca: body +X (= y x z) points the way theta grows
+    in_plane, out_of_plane = -float(np.arcsin(z_body[0])), -float(np.arcsin(z_body[1]))
+    assert abs(est.in_plane_offset_rad - in_plane) < 4 * np.sqrt(est.cov[2, 2])
+    assert abs(est.out_of_plane_offset_rad - out_of_plane) < 4 * est.out_of_plane_sigma_rad
+    assert abs(est.ca_time_obt_s - 1006.0) < 4 * np.sqrt(est.cov[0, 0])
+    t_held, _, cov_held = recs[0.0].continuous()
+    assert abs(t_held - 1006.0) > 4 * np.sqrt(cov_held[0, 0])
 
 
 def _fed_with_outliers(truth: NominalTrajectory, cfg: RecognitionConfig) -> TrajectoryRecognizer:
@@ -256,46 +312,53 @@ def test_bad_inputs_are_rejected_with_the_field_named() -> None:
 
 
 def test_the_predicted_angle_and_its_sigma_follow_the_estimate_and_its_covariance() -> None:
-    """The predicted in-plane angle is the continuous trajectory's; its sigma is the covariance carried through the
-    angle's derivatives, here taken by central differences of NominalTrajectory.theta_rad."""
+    """The predicted in-plane angle is the continuous trajectory's plus the LOS offset; its sigma is the covariance
+    (of C/A time and distance, or of those and the offset) carried through the angle's derivatives, here taken by
+    central differences of NominalTrajectory.theta_rad."""
     truth = NOMINAL.with_ca(1004.0, 52.0)
     rec = _fed(truth, seed=5)
-    t_ca, d_km, cov = rec.continuous()
-    est = NOMINAL.with_ca(t_ca, d_km)
+    est = rec.continuous_estimate()
+    t_ca, d_km, e = est.ca_time_obt_s, est.ca_distance_km, est.in_plane_offset_rad
     for t in (800.0, 950.0, 995.0, 1010.0):
-        theta, sigma = predicted_theta(t_ca, d_km, cov, NOMINAL.speed_m_s, t)
-        assert theta == pytest.approx(float(est.theta_rad(t)), abs=1e-12)
         h = 1e-4  # s and km
 
         def theta_at(dt: float, dd: float) -> float:
             return float(NOMINAL.with_ca(t_ca + dt, d_km + dd).theta_rad(t))  # noqa: B023
 
         jac = np.array([(theta_at(h, 0.0) - theta_at(-h, 0.0)) / (2 * h),
-                        (theta_at(0.0, h) - theta_at(0.0, -h)) / (2 * h)])
-        assert sigma == pytest.approx(float(np.sqrt(jac @ cov @ jac)), rel=1e-5)
+                        (theta_at(0.0, h) - theta_at(0.0, -h)) / (2 * h), 1.0])
+        theta, sigma = predicted_theta(t_ca, d_km, est.cov[:2, :2], NOMINAL.speed_m_s, t)
+        assert theta == pytest.approx(theta_at(0.0, 0.0), abs=1e-12)
+        assert sigma == pytest.approx(float(np.sqrt(jac[:2] @ est.cov[:2, :2] @ jac[:2])), rel=1e-5)
+        theta, sigma = predicted_theta(t_ca, d_km, est.cov, NOMINAL.speed_m_s, t, e)
+        assert theta == pytest.approx(theta_at(0.0, 0.0) + e, abs=1e-12)
+        assert sigma == pytest.approx(float(np.sqrt(jac @ est.cov @ jac)), rel=1e-5)
 
 
 @settings(max_examples=60, deadline=None)
-@given(dt=st.floats(-30.0, 30.0), dd_km=st.floats(-15.0, 15.0), seed=st.integers(0, 2**16),
-       outliers=st.integers(0, 20), span=st.sampled_from([(-240.0, -30.0), (-240.0, 60.0), (-100.0, -80.0)]),
-       sigmas=st.sampled_from([(10.0, 5.0), (10.0, 0.0), (0.0, 5.0), (3.0, 20.0)]))
-def test_compiled_estimate_equals_the_numpy_reference(dt: float, dd_km: float, seed: int, outliers: int,
-                                                      span: tuple[float, float],
-                                                      sigmas: tuple[float, float]) -> None:
+@given(dt=st.floats(-30.0, 30.0), dd_km=st.floats(-15.0, 15.0), offset=st.floats(-1e-3, 1e-3),
+       seed=st.integers(0, 2**16), outliers=st.integers(0, 20),
+       span=st.sampled_from([(-240.0, -30.0), (-240.0, 60.0), (-100.0, -80.0)]),
+       sigmas=st.sampled_from([(10.0, 5.0, 3.5e-4), (10.0, 5.0, 0.0), (10.0, 0.0, 3.5e-4), (0.0, 5.0, 3.5e-4),
+                               (3.0, 20.0, 1e-3), (0.0, 0.0, 3.5e-4)]))
+def test_compiled_estimate_equals_the_numpy_reference(dt: float, dd_km: float, offset: float, seed: int,
+                                                      outliers: int, span: tuple[float, float],
+                                                      sigmas: tuple[float, float, float]) -> None:
     """The compiled MAP estimate and covariance equal a plain numpy Gauss-Newton's on the same measurements (noise,
-    outliers beyond the gate, parameters held by a zero prior sigma), to rounding."""
+    a constant offset, outliers beyond the gate, parameters held by a zero prior sigma), to rounding."""
     nominal = NOMINAL.model_copy(update={"ca_time_sigma_s": sigmas[0], "ca_distance_sigma_km": sigmas[1]})
     truth = nominal.with_ca(1000.0 + dt, 55.0 + dd_km)
     rng = np.random.default_rng(seed)
     times = np.arange(1000.0 + span[0], 1000.0 + span[1], 1.0)
-    theta = truth.theta_rad(times) + rng.normal(0.0, SIGMA, times.size)
+    theta = truth.theta_rad(times) + offset + rng.normal(0.0, SIGMA, times.size)
     theta[rng.choice(times.size, size=min(outliers, times.size), replace=False)] += rng.uniform(0.01, 0.2, 1)[0]
-    start = (1000.0 + dt + rng.normal(0, 2.0), (55.0 + dd_km + rng.normal(0, 1.0)) * 1e3)
-    args = (nominal.ca_time_obt_s, nominal.ca_distance_m)
-    t, d, cov = recognition_kernels.solve(times, theta, *args, sigmas[0], sigmas[1] * 1e3, *start, nominal.speed_m_s,
-                                          CFG.angle_noise_rad, CFG.residual_cap_rad,
+    start = (1000.0 + dt + rng.normal(0, 2.0), (55.0 + dd_km + rng.normal(0, 1.0)) * 1e3, 0.0)
+    origin = (nominal.ca_time_obt_s, nominal.ca_distance_m, 0.0)
+    sigma = (sigmas[0], sigmas[1] * 1e3, sigmas[2])
+    p, cov, _ = recognition_kernels.solve(times, theta, np.array(origin), np.array(sigma), np.array(start),
+                                          nominal.speed_m_s, CFG.angle_noise_rad, CFG.residual_cap_rad,
                                           CFG.outlier_gate_sigma * CFG.angle_noise_rad, CFG.max_iterations)
-    t_ref, d_ref, cov_ref = reference_solve(times, theta, args, (sigmas[0], sigmas[1] * 1e3), start,
-                                            nominal.speed_m_s, CFG)
-    assert t == pytest.approx(t_ref, abs=1e-6) and d == pytest.approx(d_ref, abs=1e-3)
+    p_ref, cov_ref = reference_solve(times, theta, origin, sigma, start, nominal.speed_m_s, CFG)
+    assert p[0] == pytest.approx(p_ref[0], abs=1e-6) and p[1] == pytest.approx(p_ref[1], abs=1e-3)
+    assert p[2] == pytest.approx(p_ref[2], abs=1e-8)  # 1e-4 of the angle noise: both stop at the same cost change
     assert np.allclose(cov, cov_ref, rtol=1e-6, atol=1e-12)

@@ -9,7 +9,9 @@ order; recorded again when the control path (tracking loop, PD law, wheel split)
 rounded in another order: torques within 3e-16 N m of the previous record; and with the filter's 3x3 inverse by
 its adjugate; recorded again when the recognition's continuous estimate was compiled, its 2x2 systems solved in
 closed form: over the nominal flyby the C/A estimates moved by at most 1.7e-6 s and 4e-7 km, within the solver's
-stopping tolerance, and the pointing error by 6e-11 rad), for the same seed.
+stopping tolerance, and the pointing error by 6e-11 rad; recorded again when the continuous estimate solved a
+constant offset of the line of sight and EstimateReport carried it, a change of flight behaviour on purpose), for the
+same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -35,10 +37,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "7644198f4c33b8e48ae50427f7b1706c94addad2a0d56afcc7d754e4811ed112",
-    "replies": "c744e5bb6055740a1fea932cea508a0cf5d143a67fdf60e8d244f02f7df66f64",
+    "tm": "c4e160e7841c03c3ee950b06ff6e56d6b5e40766edc4e984dc720f8b2e20df7a",
+    "replies": "221772135ff3e6c4c2914eebdb1f92f9ff1c6ee86081a0070cff601d0b6fb24c",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "4875f3aab36eca1c760b278fa3b17d8b32242b5311693db5efa3c07a4db6a4ea",
+    "truth": "82455843389102848a63a5b926d86049f426b8ddf5c4586b4c639ee4d9a4f907",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,
