@@ -12,8 +12,8 @@ A lock that creeps (the plume's centroid pulled away a little more each frame) p
 each line of sight is also judged by its residual from a reference continuous C/A estimate (``Prediction``), which
 only accepted lines of sight shape: a rigid body on a straight-line flyby stays on the line of sight that estimate
 predicts (with the constant offsets of the measured line of sight it solves, a misaligned camera's: held at zero, a
-0.04 deg misalignment had true lines of sight refused near C/A), to within the measurement noise (the centroid's, the attitude's and the estimate's own, combined) and the
-apparent radius of Dimorphos (a centroid of the right blob lies on the body's disc). Beyond
+0.04 deg misalignment had true lines of sight refused near C/A), to within the measurement noise (the centroid's,
+the attitude's and the estimate's own, combined) and the apparent radius of Dimorphos (a centroid of the right blob lies on the body's disc). Beyond
 ``false_lock_residual_sigma`` of that noise past that radius the line of sight is refused. The reference is the
 estimate as it stood ``false_lock_reference_lag_s`` before the exposure (``ReferenceEstimates``), and during a run
 of refusals the one that lag before the run's first: a creep absorbed little by little into the newest estimate
@@ -59,32 +59,21 @@ class Prediction:
 
 @dataclass(frozen=True, slots=True)
 class Estimate:
-    """A continuous C/A estimate as the recognition solved it from the lines of sight exposed up to
-    ``newest_obt_s``, with the measured lines of sight's constant offsets (``obsw.recognition.ContinuousEstimate``)."""
+    """The recognition's continuous estimate (C/A, LOS offsets and covariance) as solved from the lines of sight
+    exposed up to ``newest_obt_s``."""
 
     newest_obt_s: float
-    ca_time_obt_s: float
-    ca_distance_km: float
-    cov: NDArray[np.float64]  # 2x2 in s, km; or 3x3 in s, km, rad with the in-plane offset
-    in_plane_offset_rad: float = 0.0
-    out_of_plane_offset_rad: float = 0.0
-    out_of_plane_sigma_rad: float = 0.0
-
-    @classmethod
-    def of(cls, newest_obt_s: float, e: ContinuousEstimate) -> Estimate:
-        """The recognition's continuous estimate ``e`` from lines of sight exposed up to ``newest_obt_s``."""
-        return cls(newest_obt_s, e.ca_time_obt_s, e.ca_distance_km, e.cov, e.in_plane_offset_rad,
-                   e.out_of_plane_offset_rad, e.out_of_plane_sigma_rad)
+    solved: ContinuousEstimate
 
     def prediction(self, obt_s: float, speed_m_s: float, noise_rad: float, radius_m: float) -> Prediction:
         """What this estimate predicts at ``obt_s`` of the measured line of sight to a body of ``radius_m``, measured
         with ``noise_rad`` of one-sigma noise, on a flyby at ``speed_m_s``."""
-        theta, sigma = predicted_theta(self.ca_time_obt_s, self.ca_distance_km, self.cov, speed_m_s, obt_s,
-                                       self.in_plane_offset_rad)
-        range_m = math.hypot(self.ca_distance_km * 1e3, speed_m_s * (obt_s - self.ca_time_obt_s))
-        return Prediction(theta_rad=theta, sigma_rad=math.hypot(sigma, self.out_of_plane_sigma_rad),
-                          noise_rad=noise_rad, radius_rad=radius_m / range_m,
-                          out_of_plane_rad=self.out_of_plane_offset_rad)
+        e = self.solved
+        theta, sigma = predicted_theta(e.ca_time_obt_s, e.ca_distance_km, e.cov, speed_m_s, obt_s,
+                                       e.in_plane_offset_rad)
+        range_m = math.hypot(e.ca_distance_km * 1e3, speed_m_s * (obt_s - e.ca_time_obt_s))
+        return Prediction(theta_rad=theta, sigma_rad=math.hypot(sigma, e.out_of_plane_sigma_rad),
+                          noise_rad=noise_rad, radius_rad=radius_m / range_m, out_of_plane_rad=e.out_of_plane_offset_rad)
 
 
 class ReferenceEstimates:
@@ -109,7 +98,8 @@ class ReferenceEstimates:
 
     def shift(self, step_s: float) -> None:
         """On-board time stepped: the kept estimates' times move with it."""
-        self._kept = deque(replace(e, newest_obt_s=e.newest_obt_s + step_s, ca_time_obt_s=e.ca_time_obt_s + step_s)
+        self._kept = deque(Estimate(e.newest_obt_s + step_s,
+                                    replace(e.solved, ca_time_obt_s=e.solved.ca_time_obt_s + step_s))
                            for e in self._kept)
 
 

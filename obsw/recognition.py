@@ -24,7 +24,7 @@ uncertainty a factor of two (ten to twenty milliseconds).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -179,15 +179,13 @@ class TrajectoryRecognizer:
         Before any measurement: the nominal and its prior covariance.
         """
         e = self.continuous_estimate()
-        return e.ca_time_obt_s, e.ca_distance_km, e.cov[:2, :2].copy()
+        return e.ca_time_obt_s, e.ca_distance_km, e.cov[:2, :2]
 
     def continuous_estimate(self) -> ContinuousEstimate:
         """The MAP estimate with the LOS offsets (before any measurement: the nominal, no offset, the priors)."""
         if self._solved is None or self._solved[0] != self.measurement_count:
             self._solved = (self.measurement_count, self._solve())
-        e = self._solved[1]
-        return ContinuousEstimate(e.ca_time_obt_s, e.ca_distance_km, e.in_plane_offset_rad, e.cov.copy(),
-                                  e.out_of_plane_offset_rad, e.out_of_plane_sigma_rad)
+        return replace(self._solved[1], cov=self._solved[1].cov.copy())  # the cached one's array stays untouched
 
     def continuous_trajectory(self) -> NominalTrajectory:
         """The nominal trajectory moved to the continuous estimate, with its one-sigma uncertainties."""

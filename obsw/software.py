@@ -882,7 +882,7 @@ class FlightSoftware:
         newest = None if rec is None else rec.last_measurement_obt_s
         if rec is None or newest is None or rec.measurement_count < self.cfg.min_recognition_measurements:
             return None
-        self.lock_gate.references.add(Estimate.of(newest, rec.continuous_estimate()))
+        self.lock_gate.references.add(Estimate(newest, rec.continuous_estimate()))
         reference = self.lock_gate.reference(obt)
         assert reference is not None  # one was just added
         targets = self.cfg.targets

@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 
 from obsw.config import FdirConfig, RecognitionConfig
 from obsw.lock_gate import Estimate, LockGate, Prediction
-from obsw.recognition import TrajectoryRecognizer
+from obsw.recognition import ContinuousEstimate, TrajectoryRecognizer
 from obsw.trajectory import NominalTrajectory
 
 TRAJ = NominalTrajectory(ca_time_obt_s=1000.0, ca_distance_km=55.0, speed_km_s=7.0, approach_direction=(1, 0, 0),
@@ -143,7 +143,7 @@ def _flyby(drift_deg_s: float, seed: int = 3, rec_cfg: RecognitionConfig = REC_C
         los = _los(t, drift, rng) if camera_to_body is None else _misaligned_los(t, camera_to_body, rng)
         prediction, newest = None, math.nan
         if rec.measurement_count >= 10:
-            gate.references.add(Estimate.of(float(rec.last_measurement_obt_s or 0.0), rec.continuous_estimate()))
+            gate.references.add(Estimate(float(rec.last_measurement_obt_s or 0.0), rec.continuous_estimate()))
             reference = gate.reference(t)
             assert reference is not None
             prediction = reference.prediction(t, TRAJ.speed_m_s, NOISE_RAD, DIMORPHOS_RADIUS_M)
@@ -215,7 +215,7 @@ def test_the_reference_is_the_estimate_lag_before_and_held_through_a_run_of_refu
     40 s; after a refusal at 75 s it stays that one at 95 s, and moves to the one up to 60 s once 90 s is accepted."""
     gate = LockGate(FdirConfig(false_lock_reference_lag_s=30.0))
     for k in range(11):
-        gate.references.add(Estimate(10.0 * k, 1000.0, 55.0, np.eye(2)))
+        gate.references.add(Estimate(10.0 * k, ContinuousEstimate(1000.0, 55.0, 0.0, np.eye(2), 0.0, 0.0)))
     assert gate.reference(75.0).newest_obt_s == 40.0  # type: ignore[union-attr]
     t = 75.0
     refused = gate.check(TRAJ, t, TRAJ.los_inertial(t), Prediction(theta_rad=float(TRAJ.theta_rad(t)) + 0.01,
