@@ -412,15 +412,31 @@ def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | 
     return None, None
 
 
+def _with_companion(likely: list[Blob], cands: list[Blob], predicted: tuple[float, float], cfg: ImagingConfig,
+                    exp: Expected | None) -> list[Blob]:
+    """The ``likely`` candidates having another candidate within ``_relative_jump_px`` of the ``predicted`` relative
+    offset (``_continues_pair``'s rule). Near C/A hundreds of noise clumps make all pairs too many for Python: numpy
+    screens them all with a small margin, and the few it keeps are decided by the scalar rule itself."""
+    if not likely or len(cands) < 2:
+        return []
+    at = np.array([b.region_centroid_col_row for b in cands])
+    origin = np.array([c.region_centroid_col_row for c in likely])
+    jump = np.array([_relative_jump_px(c, cfg, exp) for c in likely])
+    dx = (at[None, :, 0] - origin[:, None, 0]) - predicted[0]
+    dy = (at[None, :, 1] - origin[:, None, 1]) - predicted[1]
+    near = dx * dx + dy * dy <= (jump[:, None] * (1.0 + 1e-9) + 1e-9) ** 2  # never tighter than the rule
+    return [c for i, c in enumerate(likely) if any(
+        cands[j] is not c and _distance(_relative(cands[j], c), predicted) <= jump[i]
+        for j in np.flatnonzero(near[i]))]
+
+
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
                     prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None) -> Blob:
     """Didymos among the ``likely`` candidates (see the module docstring); ``cands`` are all candidates."""
     didymos = _best_didymos(likely, exp, regions, cfg)
     if prev_did is not None and prev_dim is not None:
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
-        predicted = _relative(prev_dim, prev_did)
-        paired = [c for c in likely if any(
-            d is not c and _distance(_relative(d, c), predicted) <= _relative_jump_px(c, cfg, exp) for d in cands)]
+        paired = _with_companion(likely, cands, _relative(prev_dim, prev_did), cfg, exp)
         if exp is not None and regions is not None:
             # comparable light, or a surface nearly as bright (its mean above the threshold at least three
             # quarters of the best's): a clump of noise at a fan's edge is near the threshold and holds little

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+import cv2
 import numpy as np
 from pydantic import ValidationError
 
@@ -32,7 +33,10 @@ def flight_software(scenario: Scenario, keys: KeyRing | None) -> FlightSoftware:
 
 
 def universe(scenario: Scenario) -> Universe:
-    """The universe simulator: the truth of the run, seeded."""
+    """The universe simulator: the truth of the run, seeded. OpenCV renders on one thread: on these frames its
+    threads cost more processor time than they save wall time, and a campaign runs a run per core
+    (``bench/speed.py``: the same frames, bit for bit)."""
+    cv2.setNumThreads(1)
     return Universe(scenario.universe, scenario.seed, apid=scenario.obsw.apid,
                     ground_period_s=scenario.ground.step_period_s)
 
