@@ -4,6 +4,7 @@ Dask LocalCluster (stopped and resumed, a run that raises), and ``flyby mc`` fro
 from __future__ import annotations
 
 import io
+import os
 import sqlite3
 from pathlib import Path
 
@@ -193,3 +194,12 @@ def test_flyby_mc_refuses_an_unknown_dispersion_path_before_running(tiny: Path, 
     assert code == EXIT_CONFIG
     assert "invalid campaign (1 problem(s))" in err and "orbit_phase" in err
     assert not (out / "results.sqlite").exists()
+
+
+def test_local_workers_keep_the_dynamic_heap(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The worker processes of a local campaign cluster run without Dask's MALLOC_TRIM_THRESHOLD_ (which maps every
+    frame-sized array afresh), and still with one BLAS thread."""
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    with dask_client(workers=1) as client:
+        seen = client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS")))
+    assert list(seen.values()) == [(None, "1")]
