@@ -119,19 +119,20 @@ class ShapeModel:
 
     def max_radius(self) -> float:
         """An upper bound of the relative radius (dense sampling plus a 2 % margin)."""
-        if "max" not in self._cache:
-            r = self.radius(fibonacci_sphere(40000))
-            exact_sphere = self.irregularity == 0 and np.ptp(self._semi_axes) == 0
-            self._cache["max"] = float(r.max()) * (1.0 if exact_sphere else 1.02)
-        return self._cache["max"]
+        return self._extremes()[1]
 
     def min_radius(self) -> float:
         """A lower bound of the relative radius (dense sampling less a 2 % margin)."""
-        if "min" not in self._cache:
+        return self._extremes()[0]
+
+    def _extremes(self) -> tuple[float, float]:
+        """Cached (min, max) bounds of the relative radius: one dense sampling for both."""
+        if "extremes" not in self._cache:
             r = self.radius(fibonacci_sphere(40000))
             exact_sphere = self.irregularity == 0 and np.ptp(self._semi_axes) == 0
-            self._cache["min"] = float(r.min()) * (1.0 if exact_sphere else 0.98)
-        return self._cache["min"]
+            self._cache["extremes"] = (float(r.min()) * (1.0 if exact_sphere else 0.98),
+                                       float(r.max()) * (1.0 if exact_sphere else 1.02))
+        return self._cache["extremes"]
 
     def surface_table(self) -> np.ndarray:
         """Cached (n_lat, n_lon, 4) float32 table of relative radius and body-frame normal over latitude/longitude.

@@ -96,8 +96,8 @@ def read_out(
     (r0, r1, c0, c1) and at the flat pixels ``star_flat``: (H, W) uint16 DN, the noise from ``rng``, the cosmic rays
     (when their flux is not zero) from ``cosmic_rng`` (default: ``rng``, after the noise).
 
-    ``signal`` is a work buffer: the sensor's own charge (hot and warm pixels, cosmic rays, dark current when it is
-    not uniform) is added to it in place.
+    ``signal`` is a work buffer: the sensor's own charge (hot and warm pixels, cosmic rays) is added to it in place;
+    a non-uniform dark current joins it in the readout's pass (``readout.digitise_dark``).
     """
     size = cfg.resolution_px
     max_dn = (1 << cfg.bit_depth) - 1
@@ -117,8 +117,10 @@ def read_out(
         points.append(flat)
     if defects.dark_e_s is not None:
         # each pixel's own dark current joins its signal: the noise model treats dark and signal electrons alike
-        signal += defects.dark_e_s * np.float32(exposure_s)
-        frame = digitise(signal, codes, cfg, 0.0, max_dn)
+        frame = np.empty((size, size), dtype=np.uint16)
+        inv_g = 1.0 / cfg.gain_e_per_dn
+        readout.digitise_dark(signal, defects.dark_e_s, exposure_s, codes, NORMAL_QUANTILES, float(cfg.read_noise_e**2),
+                              inv_g, cfg.dark_offset_dn, max_dn, frame)
     else:
         frame = _read_lit_parts(signal, boxes, np.concatenate(points), codes, cfg, dark_e, max_dn)
     if defects.dead_idx.size or defects.dead_columns.size:

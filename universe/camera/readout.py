@@ -12,6 +12,14 @@ import numpy as np
 from numba import njit
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _dn(s: np.float32, z: np.float32, v0: np.float32, g: np.float32, b: np.float32, top: np.float32) -> np.uint16:
+    """DN of a pixel of ``s`` electrons (clamped at 0) with the normal deviate ``z`` (single precision)."""
+    s = max(s, np.float32(0.0))
+    v = (s + np.sqrt(s + v0) * z) * g + b
+    return np.uint16(np.rint(min(max(v, np.float32(0.0)), top)))
+
+
 @njit(cache=True, nogil=True)
 def digitise(
     signal_e: np.ndarray, codes: np.ndarray, quantiles: np.ndarray, var0: float, inv_g: float, bias: float,
@@ -23,7 +31,6 @@ def digitise(
     rows, cols = signal_e.shape
     # single precision throughout, as the frame is stored: half the cost of double-precision square roots; per row,
     # the deviates are gathered first so that the arithmetic loop has no table look-up and vectorises
-    zero = np.float32(0.0)
     top = np.float32(max_dn)
     v0, g, b = np.float32(var0), np.float32(inv_g), np.float32(bias)
     z = np.empty(cols, dtype=np.float32)
@@ -32,9 +39,27 @@ def digitise(
         for j in range(cols):
             z[j] = quantiles[np.uint32(c_row[j])]
         for j in range(cols):
-            s = max(s_row[j], zero)
-            v = (s + np.sqrt(s + v0) * z[j]) * g + b
-            o_row[j] = np.uint16(np.rint(min(max(v, zero), top)))
+            o_row[j] = _dn(s_row[j], z[j], v0, g, b, top)
+
+
+@njit(cache=True, nogil=True)
+def digitise_dark(
+    signal_e: np.ndarray, dark_e_s: np.ndarray, exposure_s: float, codes: np.ndarray, quantiles: np.ndarray,
+    var0: float, inv_g: float, bias: float, max_dn: int, out: np.ndarray,
+) -> None:
+    """``digitise`` of ``signal_e`` plus each pixel's own dark charge ``dark_e_s * exposure_s`` (float32 (rows,
+    cols) e-/s; the sum in single precision, as ``signal_e + dark_e_s * float32(exposure_s)`` in NumPy): a
+    non-uniform dark current read in the same pass."""
+    rows, cols = signal_e.shape
+    top = np.float32(max_dn)
+    v0, g, b, t = np.float32(var0), np.float32(inv_g), np.float32(bias), np.float32(exposure_s)
+    z = np.empty(cols, dtype=np.float32)
+    for i in range(rows):
+        s_row, d_row, c_row, o_row = signal_e[i], dark_e_s[i], codes[i], out[i]
+        for j in range(cols):
+            z[j] = quantiles[np.uint32(c_row[j])]
+        for j in range(cols):
+            o_row[j] = _dn(s_row[j] + d_row[j] * t, z[j], v0, g, b, top)
 
 
 @njit(cache=True, nogil=True)
@@ -54,4 +79,5 @@ def warm_up() -> None:
     quantiles = np.zeros(65536, np.float32)
     digitise(frame, codes, quantiles, 1.0, 1.0, 0.0, 4095, np.empty((4, 4), np.uint16))
     digitise(frame[1:3, 1:3], codes[1:3, 1:3], quantiles, 1.0, 1.0, 0.0, 4095, np.empty((2, 2), np.uint16))
+    digitise_dark(frame, frame, 1.0, codes, quantiles, 1.0, 1.0, 0.0, 4095, np.empty((4, 4), np.uint16))
     dark_frame(codes, np.zeros(65536, np.uint16), np.empty((4, 4), np.uint16))

@@ -27,7 +27,8 @@ _PROBE = """
 import json
 from universe.camera import raycast, readout, warm_up
 warm_up()
-stats = {d.__name__: d.stats for d in (raycast.cast_body, readout.digitise, readout.dark_frame)}
+stats = {d.__name__: d.stats for d in (raycast.cast_body, readout.digitise, readout.digitise_dark,
+                                              readout.dark_frame)}
 print(json.dumps({k: [s.cache_path, len(s.cache_hits), len(s.cache_misses)] for k, s in stats.items()}))
 """
 

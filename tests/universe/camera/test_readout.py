@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from universe.camera import NORMAL_QUANTILES, normal_codes
-from universe.camera.readout import dark_frame, digitise
+from universe.camera.readout import dark_frame, digitise, digitise_dark
 
 
 def reference_dn(signal_e: np.ndarray, codes: np.ndarray, var0: float, inv_g: float, bias: float, max_dn: int):
@@ -39,6 +39,28 @@ def test_digitise_clips_at_zero_below_the_offset() -> None:
     out = np.empty((4, 4), dtype=np.uint16)
     digitise(np.zeros((4, 4), np.float32), codes, NORMAL_QUANTILES, 100.0, 1.0, 0.0, 4095, out)
     assert np.all(out == 0)
+
+
+def test_digitise_dark_reads_the_dark_charge_with_the_signal() -> None:
+    """A non-uniform dark current read in the pass equals the signal plus its dark charge (NumPy, single precision)
+    digitised, bit for bit."""
+    rng = np.random.default_rng(11)
+    signal = rng.uniform(-20.0, 5_000.0, (200, 300)).astype(np.float32)
+    dark = rng.lognormal(1.0, 0.5, signal.shape).astype(np.float32)
+    codes = normal_codes(rng, signal.shape)
+    args = (NORMAL_QUANTILES, 144.0, 1 / 9.0, 100.0, 4095)
+    out, expected = np.empty(signal.shape, np.uint16), np.empty(signal.shape, np.uint16)
+    digitise_dark(signal, dark, 0.37, codes, *args, out)
+    digitise(signal + dark * np.float32(0.37), codes, *args, expected)
+    assert np.array_equal(out, expected)
+    assert not np.array_equal(out, _without_dark(signal, codes, args))  # the dark charge is read
+
+
+def _without_dark(signal: np.ndarray, codes: np.ndarray, args: tuple) -> np.ndarray:
+    """The same pixels digitised without their dark charge."""
+    out = np.empty(signal.shape, np.uint16)
+    digitise(signal, codes, *args, out)
+    return out
 
 
 def test_dark_frame_is_the_table_at_each_code() -> None:
