@@ -98,6 +98,12 @@ class ShapeModel:
         u = np.asarray(u, dtype=np.float64)
         shape = u.shape[:-1]
         u = u.reshape(-1, 3)
+        if len(u) > _ROWS_PER_PASS:
+            # a table's 132,000 directions at once make (n, K) temporaries of 40 MB, each page-faulted afresh: in
+            # passes that stay in the cache the same arithmetic runs 9x faster
+            parts = [self.radius_and_normal(u[i:i + _ROWS_PER_PASS]) for i in range(0, len(u), _ROWS_PER_PASS)]
+            return (np.concatenate([p[0] for p in parts]).reshape(shape),
+                    np.concatenate([p[1] for p in parts]).reshape(*shape, 3))
         inv_a2 = 1.0 / self._semi_axes**2
         q = (u * u) @ inv_a2
         e = q**-0.5
@@ -168,4 +174,5 @@ class ShapeModel:
         return out.reshape(*shape, 4)
 
 
+_ROWS_PER_PASS = 4096  # directions evaluated together by ``radius_and_normal``
 _TABLE_LAT = 257  # 0.7 deg steps: far finer than the narrowest (12 deg) bump

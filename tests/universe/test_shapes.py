@@ -53,3 +53,17 @@ def test_shape_table_lookup_matches_direct_evaluation() -> None:
     u = fibonacci_sphere(5000)
     look = shape.lookup(u[:, 0].reshape(50, 100), u[:, 1].reshape(50, 100), u[:, 2].reshape(50, 100))
     assert np.max(np.abs(look[..., 0].ravel() - shape.radius(u))) < 1e-3
+
+
+def test_each_direction_is_evaluated_as_if_alone() -> None:
+    """A direction's radius and normal do not depend on how many directions are evaluated with it (the shape is
+    evaluated in passes), to 1e-12 (the matrix products' rounding may differ in the last bit)."""
+    shape = ShapeModel(seed=9, axis_ratios=(1.12, 1.0, 0.88))
+    u = fibonacci_sphere(10_001)
+    r, n = shape.radius_and_normal(u)
+    for i in (0, 4095, 4096, 10_000):
+        r1, n1 = shape.radius_and_normal(u[i:i + 1])
+        assert abs(r1[0] - r[i]) <= 1e-12 and np.allclose(n1[0], n[i], rtol=0.0, atol=1e-12)
+    grid = u.reshape(1, -1, 3)  # any leading shape is kept
+    r2, n2 = shape.radius_and_normal(grid)
+    assert r2.shape == (1, 10_001) and n2.shape == (1, 10_001, 3) and np.array_equal(r2[0], r)
