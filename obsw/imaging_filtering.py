@@ -26,7 +26,7 @@ corrections enter the block sums, so the frame itself is never copied or changed
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,6 +53,7 @@ class BadPixelMap:
     left: np.ndarray
     right: np.ndarray
     columns: tuple[int, ...]  # dead columns as uploaded
+    _blocks: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, init=False, repr=False)
 
     @classmethod
     def build(cls, side: int, pixels_col_row: tuple[tuple[int, int], ...] | list[tuple[int, int]],
@@ -89,6 +90,20 @@ class BadPixelMap:
 
     def __len__(self) -> int:
         return int(self.pixels.size)
+
+    def blocks(self, f: int) -> tuple[np.ndarray, np.ndarray]:
+        """The f x f binning blocks holding bad pixels (sorted flat indices at the binned scale) and, for each bad
+        pixel, the position of its block among them; computed once per binning (the map is a constant between
+        uploads)."""
+        got = self._blocks.get(f)
+        if got is None:
+            n = self.side // f
+            rows, cols = np.divmod(self.pixels, self.side)
+            got = np.unique((rows // f) * n + cols // f, return_inverse=True)
+            for a in got:
+                a.setflags(write=False)
+            self._blocks[f] = got
+        return got
 
     def replacement(self, flat_frame: np.ndarray) -> np.ndarray:
         """The replacement value (int64) of each bad pixel in a flattened frame: the rounded mean of its good
@@ -182,20 +197,6 @@ def histogram_median_mad(hist: np.ndarray) -> tuple[int, int]:
     return median, mad
 
 
-def _window_index(f: int) -> np.ndarray:
-    """For each of the f x f pixels of a block, the flat positions of its 3x3 neighbourhood in the block's
-    (f + 2) x (f + 2) window, (f*f, 9)."""
-    w = f + 2
-    out = np.empty((f * f, 9), dtype=np.int64)
-    for i in range(f):
-        for j in range(f):
-            out[i * f + j] = [(i + 1 + di) * w + (j + 1 + dj) for di in (-1, 0, 1) for dj in (-1, 0, 1)]
-    return out
-
-
-_WINDOW_INDEX = {f: _window_index(f) for f in (1, 2, 4)}
-
-
 def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixelMap | None = None) -> Filtered:
     """Correct the frame's defects and bin it (see the module docstring); the frame must have passed ``check_frame``.
 
@@ -225,9 +226,8 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
             raise FrameError(f"the bad-pixel map is for a {bad.side} px sensor, the frame is {side} px")
         bad_values = bad.replacement(flat_frame)
         delta = bad_values - flat_frame[bad.pixels].astype(np.int64)
-        rows, cols = np.divmod(bad.pixels, side)
-        bad_blocks = (rows // f) * n + cols // f
-        _correct_blocks(flat_sums, flat_binned, hist, bad_blocks, delta, area)
+        bad_blocks, inverse = bad.blocks(f)
+        _correct_blocks(flat_sums, flat_binned, hist, bad_blocks, delta, area, inverse)
         replaced = int(bad.pixels.size)
     background, mad = histogram_median_mad(hist)
     sigma = max(f * MAD_TO_SIGMA * mad, 1.0)
@@ -240,7 +240,9 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
         if bad_blocks.size:
             blocks = np.union1d(blocks, bad_blocks)
         if blocks.size:
-            outliers, block_delta, changed = _outliers(pixels, blocks, f, n, cfg, background, sigma, bad, bad_values)
+            outliers, block_delta, changed = kernels.outliers(
+                pixels, blocks.astype(np.int64, copy=False), f, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
+                int(background), bad.pixels if bad_values.size else bad_values, bad_values)
             if changed.size:
                 _correct_blocks(flat_sums, flat_binned, hist, changed, block_delta, area)
     return Filtered(binned=binned_image, hist=hist, background_dn=background, noise_sigma_dn=float(sigma),
@@ -261,54 +263,17 @@ def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _correct_blocks(flat_sums: np.ndarray, flat_binned: np.ndarray, hist: np.ndarray, blocks: np.ndarray,
-                    delta: np.ndarray, area: int) -> None:
-    """Add ``delta`` to the sums of ``blocks`` (repeated blocks add up) and update their rounded means and the
-    histogram; each correction swaps a pixel's value for another of the same bit depth, so sums stay in range."""
-    ub, inv = np.unique(blocks, return_inverse=True)
-    flat_sums[ub] += np.bincount(inv, weights=delta, minlength=ub.size).astype(np.int64)
-    new = (flat_sums[ub] + area // 2) // area
-    np.subtract.at(hist, flat_binned[ub], 1)
+                    delta: np.ndarray, area: int, inverse: np.ndarray | None = None) -> None:
+    """Add ``delta`` to the sums of ``blocks`` and update their rounded means and the histogram; each correction
+    swaps a pixel's value for another of the same bit depth, so sums stay in range. With ``inverse``, ``blocks``
+    are distinct and ``delta[k]`` adds to ``blocks[inverse[k]]``; without, repeated blocks add up."""
+    if inverse is None:
+        blocks, inverse = np.unique(blocks, return_inverse=True)
+    flat_sums[blocks] += np.bincount(inverse, weights=delta, minlength=blocks.size).astype(np.int64)
+    new = (flat_sums[blocks] + area // 2) // area
+    np.subtract.at(hist, flat_binned[blocks], 1)
     np.add.at(hist, new, 1)
-    flat_binned[ub] = new
-
-
-def _outliers(frame: np.ndarray, blocks: np.ndarray, f: int, n: int, cfg: ImagingConfig, background: int,
-              sigma: float, bad: BadPixelMap | None, bad_values: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Test every pixel of ``blocks`` (flat block indices); return (flat indices of the outliers, the sum of
-    (replacement - value) of each changed block, the changed blocks)."""
-    side = frame.shape[0]
-    w = f + 2
-    brow, bcol = np.divmod(blocks, n)
-    offs = np.arange(-1, f + 1)
-    # the (f + 2) x (f + 2) window around each block, borders replicated (OpenCV medianBlur's border)
-    rr = np.clip(brow[:, None] * f + offs[None, :], 0, side - 1)
-    cc = np.clip(bcol[:, None] * f + offs[None, :], 0, side - 1)
-    idx = (rr[:, :, None] * side + cc[:, None, :]).reshape(blocks.size, w * w)
-    win = frame.reshape(-1)[idx].astype(np.int64)
-    if bad is not None and len(bad):
-        pos = np.searchsorted(bad.pixels, idx)
-        hit = bad.pixels[np.minimum(pos, bad.pixels.size - 1)] == idx
-        win[hit] = bad_values[pos[hit]]
-    inner = np.arange(1, f + 1)
-    centre_pos = (inner[:, None] * w + inner[None, :]).reshape(-1)
-    centre = win[:, centre_pos]  # (K, f*f)
-    area = f * f
-    k_sigma = cfg.outlier_k_sigma * sigma
-    top = centre.max(axis=1)
-    rest = centre.sum(axis=1) - top
-    dominated = area * top - centre.sum(axis=1) > (area - 1) * k_sigma + (cfg.outlier_ratio - 1.0) * np.maximum(
-        rest - (area - 1) * background, 0)
-    neigh = win[:, _WINDOW_INDEX[f]]  # (K, f*f, 9)
-    median = np.partition(neigh, 4, axis=2)[:, :, 4]
-    above = centre - background
-    flagged = dominated[:, None] & (above > cfg.outlier_ratio * np.maximum(median - background, 0) + k_sigma)
-    if not flagged.any():
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, empty
-    delta = np.where(flagged, median - centre, 0).sum(axis=1)
-    changed = np.flatnonzero(flagged.any(axis=1))
-    return np.sort(idx[:, centre_pos][flagged]), delta[changed], blocks[changed]
+    flat_binned[blocks] = new
 
 
 def compression_lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:
