@@ -106,6 +106,7 @@ class TrajectoryRecognizer:
         self._meas_theta: list[float] = []
         self._meas_out: list[float] = []
         self._solved: tuple[int, ContinuousEstimate] | None = None
+        self._trajectory: tuple[object, NominalTrajectory] | None = None  # (the _solved it was built from, it)
 
     def shift_time(self, step_s: float) -> None:
         """On-board time stepped by ``step_s``: the nominal, the candidates and the measurement times move with it,
@@ -188,9 +189,12 @@ class TrajectoryRecognizer:
         return replace(self._solved[1], cov=self._solved[1].cov.copy())  # the cached one's array stays untouched
 
     def continuous_trajectory(self) -> NominalTrajectory:
-        """The nominal trajectory moved to the continuous estimate, with its one-sigma uncertainties."""
+        """The nominal trajectory moved to the continuous estimate, with its one-sigma uncertainties (the same value
+        until the estimate changes: the lock gate asks for it with every frame)."""
         t, d, cov = self.continuous()
-        return NominalTrajectory(
+        if self._trajectory is not None and self._trajectory[0] is self._solved:
+            return self._trajectory[1]
+        traj = NominalTrajectory(
             **{
                 **self.nominal.model_dump(),
                 "ca_time_obt_s": t,
@@ -199,6 +203,8 @@ class TrajectoryRecognizer:
                 "ca_distance_sigma_km": float(np.sqrt(max(cov[1, 1], 0.0))),
             }
         )
+        self._trajectory = (self._solved, traj)
+        return traj
 
     @property
     def last_measurement_obt_s(self) -> float | None:

@@ -1033,8 +1033,8 @@ class FlightSoftware:
                 rate_rad_s=tuple(float(c) for c in omega), wheel_speed_rad_s=tuple(float(c) for c in wheel_speed),
                 wheel_momentum_nms=tuple(float(c) for c in wheel_h), pointing_error_rad=self.pointing_error_est_rad,
                 best_ca_obt_s=best_t, best_ca_distance_km=best_d, best_mse_rad2=mse,
-                task_time_last_s=tuple(ex.last_execution_s[t] for t in Task),
-                task_time_max_s=tuple(ex.max_execution_s[t] for t in Task),
+                task_time_last_s=tuple(ex.last_execution_s[t] for t in _TASKS),
+                task_time_max_s=tuple(ex.max_execution_s[t] for t in _TASKS),
                 exposure_to_centroid_s=self._exposure_to_centroid_s, centroid_to_torque_s=self._centroid_to_torque_s,
                 task_overruns=ex.task_overruns, frame_overruns=ex.frame_overruns, skipped_releases=ex.skipped,
                 gyro_bias_rad_s=tuple(float(c) for c in self._bias), attitude_sigma_rad=self._attitude_sigma_rad,
@@ -1054,6 +1054,9 @@ class FlightSoftware:
                 los_offset_out_of_plane_rad=e.out_of_plane_offset_rad), obt)
             sent += 1
         return sent
+
+
+_TASKS = tuple(Task)  # in the dictionary's order; iterating the enumeration itself is slow
 
 
 def _col_row(blob: object) -> tuple[float, float] | None:

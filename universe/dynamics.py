@@ -142,7 +142,7 @@ class SpacecraftDynamics:
         u = np.asarray(torque_nm, dtype=float)
         if u.shape != (self.n_wheels,):
             raise DynamicsError(f"{name} must have shape ({self.n_wheels},), got {u.shape}")
-        if not np.isfinite(u).all():
+        if not all(math.isfinite(x) for x in u.tolist()):  # a few wheels: cheaper than a NumPy reduction
             raise DynamicsError(f"{name} must be finite, got {u.tolist()}")
         return u
 
