@@ -203,3 +203,17 @@ def test_local_workers_keep_the_dynamic_heap(monkeypatch: pytest.MonkeyPatch) ->
     with dask_client(workers=1) as client:
         seen = client.run(lambda: (os.environ.get("MALLOC_TRIM_THRESHOLD_"), os.environ.get("OMP_NUM_THREADS")))
     assert list(seen.values()) == [(None, "1")]
+
+
+def test_the_remote_workers_configuration_is_the_local_clusters() -> None:
+    """configs/dask/workers.yaml, which the README gives remote workers, sets what the LocalCluster sets, and on top
+    of Dask's defaults leaves the thread limits in place."""
+    import dask.config
+    import yaml
+
+    from flyby.montecarlo.engine import WORKER_ENVIRON
+    shipped = yaml.safe_load((Path(__file__).resolve().parents[2] / "configs" / "dask" / "workers.yaml").read_text())
+    for key, value in WORKER_ENVIRON.items():
+        assert dask.config.get(key, config=shipped) == value
+    merged = dask.config.merge(dask.config.config, shipped)["distributed"]["nanny"]["pre-spawn-environ"]
+    assert merged["MALLOC_TRIM_THRESHOLD_"] is None and merged["OMP_NUM_THREADS"] == 1
