@@ -5,7 +5,7 @@ of the same scenario and dispersions, one at image level and one at centroid lev
 
     python bench/montecarlo.py configs/scenarios/nominal.yaml --runs 200 --fidelity image --out runs/mc-bench
     python bench/montecarlo.py configs/scenarios/nominal.yaml --runs 200 --fidelity centroid --out runs/mc-bench
-    python bench/centroid_fidelity.py runs/mc-bench/nominal-image runs/mc-bench/nominal-centroid
+    python bench/centroid_fidelity.py runs/mc-bench/nominal-image runs/mc-bench/nominal-centroid [--runs 200]
 
 Prints per figure the runs, medians and 99th percentiles of both, the KS statistic D and its p-value
 (``scipy.stats.ks_2samp``): a small p-value says the two levels fly differently.
@@ -32,10 +32,11 @@ FIGURES = (("in_view_fraction", "target in view, fraction of frames"),
            ("detection_latency_s", "ACQUISITION to TargetAcquired, s"))
 
 
-def figure(folder: Path, name: str) -> np.ndarray:
-    """A figure over the completed runs of a campaign folder."""
+def figure(folder: Path, name: str, runs: int | None = None) -> np.ndarray:
+    """A figure over the completed runs of a campaign folder (those numbered below ``runs``, if given)."""
     with open_store(folder) as store:
-        return np.array([r[name] for r in store.rows() if r["status"] == "ok" and r[name] is not None], dtype=float)
+        return np.array([r[name] for r in store.rows() if r["status"] == "ok" and r[name] is not None
+                         and (runs is None or r["run"] < runs)], dtype=float)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -43,6 +44,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("image", type=Path, help="campaign folder at image level")
     ap.add_argument("centroid", type=Path, help="campaign folder at centroid level")
+    ap.add_argument("--runs", type=int, help="compare runs 0..N-1 of each (the same draws when both campaigns have "
+                    "the same campaign seed); default: every stored run")
     args = ap.parse_args(argv)
     for folder in (args.image, args.centroid):
         if not (folder / "results.sqlite").is_file():
@@ -52,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     print("| figure | runs (image / centroid) | median (image / centroid) | 99 % (image / centroid) | D | p-value |")
     print("|" + "---|" * 6)
     for name, label in FIGURES:
-        a, b = figure(args.image, name), figure(args.centroid, name)
+        a, b = figure(args.image, name, args.runs), figure(args.centroid, name, args.runs)
         ks = ks_2samp(a, b)
         print(f"| {label} | {a.size} / {b.size} | {np.median(a):.4g} / {np.median(b):.4g} "
               f"| {np.percentile(a, 99):.4g} / {np.percentile(b, 99):.4g} | {ks.statistic:.3f} | {ks.pvalue:.3g} |")
