@@ -219,7 +219,7 @@ def theta_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section
 
 def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """Estimated minus true C/A (to Dimorphos) time and distance over time, grid and continuous (with one sigma),
-    and where the Didymos barycentre's C/A lies on the same axes."""
+    and where the Didymos barycentre's C/A lies on the same axes; the line-of-sight offsets solved on board."""
     s = Section("C/A estimates against the truth",
                 "On-board estimates of the C/A time and distance minus the true C/A to Dimorphos, as they evolved "
                 "(EstimateReport; grid choice also from housekeeping). The dashed line is the C/A to the Didymos "
@@ -235,7 +235,9 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
         s.missing.append("no best trajectory in the housekeeping")
     if not est and not hk:
         return s
-    fig, (ax_t, ax_d) = _figure(2, 2.8)
+    offsets = los_offset_series(est, ca)
+    fig, axes = _figure(3 if offsets.size else 2, 2.8)
+    ax_t, ax_d = axes[:2]
     if hk:
         a = np.array(hk, dtype=float)
         ax_t.plot(a[:, 0] - ca, a[:, 1] - ca, ".", color="0.6", ms=3, label="grid (HK)")
@@ -260,17 +262,33 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
         ax.legend(loc="upper right", fontsize=8)
     ax_t.set_ylabel("C/A time error, s")
     ax_d.set_ylabel("C/A distance error, km")
-    offsets = [e for _, e in est if e.los_offset_in_plane_rad is not None]
-    if offsets:
+    if offsets.size:
         b = np.asarray(data.scenario.universe.camera.boresight_body, dtype=float)
         b = b / np.linalg.norm(b)
-        s.notes.append(f"line-of-sight offset solved on board (last estimate): in plane "
-                       f"{offsets[-1].los_offset_in_plane_rad * 1e3:+.3f} mrad, out of plane "
-                       f"{offsets[-1].los_offset_out_of_plane_rad * 1e3:+.3f} mrad; the true camera boresight is "
-                       f"{np.arccos(min(1.0, float(b[2]))) * 1e3:.3f} mrad off body +Z (x {b[0] * 1e3:+.3f}, "
-                       f"y {b[1] * 1e3:+.3f} mrad)")
+        off_mrad = np.arccos(min(1.0, float(b[2]))) * 1e3
+        s.notes.append(f"line-of-sight offset solved on board (last estimate): in plane {offsets[-1, 1]:+.3f} mrad, "
+                       f"out of plane {offsets[-1, 2]:+.3f} mrad; the true camera boresight is {off_mrad:.3f} mrad "
+                       f"off body +Z (x {b[0] * 1e3:+.3f}, y {b[1] * 1e3:+.3f} mrad)")
+        ax_o = axes[2]
+        ax_o.plot(offsets[:, 0], offsets[:, 1], color=TM_COLOUR, label="in plane")
+        ax_o.plot(offsets[:, 0], offsets[:, 2], color=CHOSEN_COLOUR, label="out of plane")
+        # each component of a constant offset lies within its magnitude, whatever the tracking's roll
+        for sign in (1.0, -1.0):
+            ax_o.axhline(sign * off_mrad, color="k", lw=0.8, ls="--", label="true boresight offset, magnitude"
+                         if sign > 0 else None)
+        _ca_lines(ax_o, cfg)
+        ax_o.set_ylabel("LOS offset solved on board, mrad")
+        ax_o.legend(loc="upper right", fontsize=8)
     s.png = png_bytes(fig, cfg.plot_dpi)
     return s
+
+
+def los_offset_series(estimates: Sequence[tuple[float, pus.EstimateReport]], ca_obt_s: float) -> np.ndarray:
+    """(n, 3): OBT minus the true C/A (s), and the in-plane and out-of-plane line-of-sight offsets solved on board
+    (mrad), of each EstimateReport that carries them."""
+    rows = [(t - ca_obt_s, e.los_offset_in_plane_rad * 1e3, e.los_offset_out_of_plane_rad * 1e3)
+            for t, e in estimates if e.los_offset_in_plane_rad is not None and e.los_offset_out_of_plane_rad is not None]
+    return np.array(rows, dtype=float).reshape(-1, 3)
 
 
 def centroid_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:

@@ -8,13 +8,15 @@ import json
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+from analysis.plots import los_offset_series
 from analysis.report import build_report, write_report
 from analysis.runfolder import RunFolderError
 from contracts import pus
 from ground.config import ReportConfig
-from tests.analysis.synthetic import CA_OBT, IN_VIEW_EXPECTED, LOS_OFFSET_RAD, make_run
+from tests.analysis.synthetic import CA_OBT, IN_VIEW_EXPECTED, LOS_OFFSET_RAD, make_run, telemetry_reports
 
 
 def test_requirement_verdicts_in_the_table(full_run) -> None:
@@ -54,6 +56,19 @@ def test_the_on_board_los_offset_is_shown_beside_the_true_boresight(full_run) ->
     page = path.read_text()
     assert (f"in plane {LOS_OFFSET_RAD[0] * 1e3:+.3f} mrad, out of plane {LOS_OFFSET_RAD[1] * 1e3:+.3f} mrad; the "
             "true camera boresight is 0.000 mrad off body +Z") in page
+
+
+def test_the_los_offsets_are_plotted_over_time_from_the_estimate_reports() -> None:
+    """The offsets panel plots every EstimateReport carrying offsets, in mrad against the time from the true C/A, and
+    nothing for reports without them."""
+    reports = [(t, r) for t, r in telemetry_reports(None) if isinstance(r, pus.EstimateReport)]
+    series = los_offset_series(reports, CA_OBT)
+    assert series.shape == (len(reports), 3) and len(reports) == 160
+    assert np.allclose(series[:, 0], [t - CA_OBT for t, _ in reports], rtol=0.0, atol=1e-9)
+    assert np.allclose(series[:, 1:], np.array(LOS_OFFSET_RAD) * 1e3, rtol=0.0, atol=1e-12)
+    bare = [(t, r.model_copy(update={"los_offset_in_plane_rad": None, "los_offset_out_of_plane_rad": None}))
+            for t, r in reports[:3]]
+    assert los_offset_series(bare, CA_OBT).shape == (0, 3)
 
 
 def test_scenario_report_config_is_used(tmp_path: Path) -> None:
