@@ -285,9 +285,9 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
 
 def los_offset_series(estimates: Sequence[tuple[float, pus.EstimateReport]], ca_obt_s: float) -> np.ndarray:
     """(n, 3): OBT minus the true C/A (s), and the in-plane and out-of-plane line-of-sight offsets solved on board
-    (mrad), of each EstimateReport that carries them."""
+    (mrad), of each EstimateReport that carries them (the dictionary makes the two come together)."""
     rows = [(t - ca_obt_s, e.los_offset_in_plane_rad * 1e3, e.los_offset_out_of_plane_rad * 1e3)
-            for t, e in estimates if e.los_offset_in_plane_rad is not None and e.los_offset_out_of_plane_rad is not None]
+            for t, e in estimates if e.los_offset_in_plane_rad is not None]
     return np.array(rows, dtype=float).reshape(-1, 3)
 
 

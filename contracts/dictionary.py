@@ -937,8 +937,8 @@ class EstimateReport(Report, service=MISSION_SERVICE, subtype=131):
     are NaN with their flag cleared."""
 
     n_measurements: U32 = field("line-of-sight measurements used")
-    flags: ClassVar[Validity] = Validity("validity: bit0 grid estimate, bit1 continuous estimate, bit2 its line-of-sight "
-                                         "offsets")
+    flags: ClassVar[Validity] = Validity("validity: bit0 grid estimate, bit1 continuous estimate, bit2 its "
+                                         "line-of-sight offsets")
     grid_ca_obt_s: Finite | None = field("grid C/A time, OBT", "s", default=None, bit=0)
     grid_ca_distance_km: Finite | None = field("grid C/A distance", "km", default=None, bit=0)
     grid_mse_rad2: Finite | None = field("grid mean square line-of-sight error", "rad^2", default=None, bit=0)
@@ -959,7 +959,8 @@ class EstimateReport(Report, service=MISSION_SERVICE, subtype=131):
         cont = (self.continuous_ca_obt_s, self.continuous_ca_distance_km, self.continuous_sigma_time_s,
                 self.continuous_sigma_distance_km)
         offsets = (self.los_offset_in_plane_rad, self.los_offset_out_of_plane_rad)
-        for name, group in (("grid_ca_obt_s", grid), ("continuous_ca_obt_s", cont), ("los_offset_in_plane_rad", offsets)):
+        for name, group in (("grid_ca_obt_s", grid), ("continuous_ca_obt_s", cont),
+                            ("los_offset_in_plane_rad", offsets)):
             if any(v is None for v in group) and any(v is not None for v in group):
                 raise ValueError(f"{name}: an estimate needs all of its values, or none")
         return self

@@ -219,13 +219,12 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
     flat_binned = binned_image.reshape(-1)
     flat_frame = pixels.reshape(-1)
     replaced = 0
-    bad_blocks = np.zeros(0, dtype=np.int64)
-    bad_values = np.zeros(0, dtype=np.int64)
+    bad_blocks = bad_pixels = bad_values = np.zeros(0, dtype=np.int64)
     if bad is not None and len(bad):
         if bad.side != side:
             raise FrameError(f"the bad-pixel map is for a {bad.side} px sensor, the frame is {side} px")
-        bad_values = bad.replacement(flat_frame)
-        delta = bad_values - flat_frame[bad.pixels].astype(np.int64)
+        bad_pixels, bad_values = bad.pixels, bad.replacement(flat_frame)
+        delta = bad_values - flat_frame[bad_pixels].astype(np.int64)
         bad_blocks, inverse = bad.blocks(f)
         _correct_blocks(flat_sums, flat_binned, hist, bad_blocks, delta, area, inverse)
         replaced = int(bad.pixels.size)
@@ -242,7 +241,7 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
         if blocks.size:
             outliers, block_delta, changed = kernels.outliers(
                 pixels, blocks.astype(np.int64, copy=False), f, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
-                int(background), bad.pixels if bad_values.size else bad_values, bad_values)
+                int(background), bad_pixels, bad_values)
             if changed.size:
                 _correct_blocks(flat_sums, flat_binned, hist, changed, block_delta, area)
     return Filtered(binned=binned_image, hist=hist, background_dn=background, noise_sigma_dn=float(sigma),

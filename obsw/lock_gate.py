@@ -13,8 +13,8 @@ each line of sight is also judged by its residual from a reference continuous C/
 only accepted lines of sight shape: a rigid body on a straight-line flyby stays on the line of sight that estimate
 predicts (with the constant offsets of the measured line of sight it solves, a misaligned camera's: held at zero, a
 0.04 deg misalignment had true lines of sight refused near C/A), to within the measurement noise (the centroid's,
-the attitude's and the estimate's own, combined) and the apparent radius of Dimorphos (a centroid of the right blob lies on the body's disc). Beyond
-``false_lock_residual_sigma`` of that noise past that radius the line of sight is refused. The reference is the
+the attitude's and the estimate's own, combined) and the apparent radius of Dimorphos (a centroid of the right blob
+lies on the body's disc). Beyond ``false_lock_residual_sigma`` of that noise past that radius the line of sight is refused. The reference is the
 estimate as it stood ``false_lock_reference_lag_s`` before the exposure (``ReferenceEstimates``), and during a run
 of refusals the one that lag before the run's first: a creep absorbed little by little into the newest estimate
 accumulates against that older one, and once refused it is judged against an estimate from before it began (if it
@@ -73,7 +73,8 @@ class Estimate:
                                        e.in_plane_offset_rad)
         range_m = math.hypot(e.ca_distance_km * 1e3, speed_m_s * (obt_s - e.ca_time_obt_s))
         return Prediction(theta_rad=theta, sigma_rad=math.hypot(sigma, e.out_of_plane_sigma_rad),
-                          noise_rad=noise_rad, radius_rad=radius_m / range_m, out_of_plane_rad=e.out_of_plane_offset_rad)
+                          noise_rad=noise_rad, radius_rad=radius_m / range_m,
+                          out_of_plane_rad=e.out_of_plane_offset_rad)
 
 
 class ReferenceEstimates:

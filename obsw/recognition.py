@@ -220,8 +220,9 @@ class TrajectoryRecognizer:
                                       np.diag([sig_t**2, (sig_d_m / 1e3) ** 2, sig_e**2]), 0.0, sig_e)
         t0, d0_km, _ = self.best_grid()
         p, cov, inliers = recognition_kernels.solve(
-            np.asarray(self._meas_t), np.asarray(self._meas_theta), np.array([nom.ca_time_obt_s, nom.ca_distance_m, 0.0]),
-            np.array([sig_t, sig_d_m, sig_e]), np.array([t0, d0_km * 1e3, 0.0]), nom.speed_m_s, c.angle_noise_rad,
+            np.asarray(self._meas_t), np.asarray(self._meas_theta),
+            np.array([nom.ca_time_obt_s, nom.ca_distance_m, 0.0]), np.array([sig_t, sig_d_m, sig_e]),
+            np.array([t0, d0_km * 1e3, 0.0]), nom.speed_m_s, c.angle_noise_rad,
             c.residual_cap_rad, c.outlier_gate_sigma * c.angle_noise_rad, c.max_iterations)
         # the out-of-plane offset: the mean of the inliers' angles shrunk by the prior (0 without one)
         out = np.asarray(self._meas_out)[inliers]

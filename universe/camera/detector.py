@@ -64,10 +64,15 @@ def digitise(
     s = signal_e.reshape(1, -1) if signal_e.ndim == 1 else signal_e
     c = codes.reshape(1, -1) if codes.ndim == 1 else codes
     out = np.empty(s.shape, dtype=np.uint16)
-    inv_g = 1.0 / cfg.gain_e_per_dn
-    readout.digitise(s, c, NORMAL_QUANTILES, float(dark_e + cfg.read_noise_e**2), inv_g,
-                     cfg.dark_offset_dn + dark_e * inv_g, max_dn, out)
+    readout.digitise(s, c, NORMAL_QUANTILES, *_noise_model(cfg, dark_e), max_dn, out)
     return out.reshape(shape)
+
+
+def _noise_model(cfg: CameraConfig, dark_e: float) -> tuple[float, float, float]:
+    """The readout kernels' (variance without signal e-^2, inverse gain DN/e-, bias DN) for a uniform dark charge
+    ``dark_e`` (0 when each pixel's own dark charge joins its signal)."""
+    inv_g = 1.0 / cfg.gain_e_per_dn
+    return float(dark_e + cfg.read_noise_e**2), inv_g, cfg.dark_offset_dn + dark_e * inv_g
 
 
 def merged_boxes(boxes: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:
@@ -118,9 +123,8 @@ def read_out(
     if defects.dark_e_s is not None:
         # each pixel's own dark current joins its signal: the noise model treats dark and signal electrons alike
         frame = np.empty((size, size), dtype=np.uint16)
-        inv_g = 1.0 / cfg.gain_e_per_dn
-        readout.digitise_dark(signal, defects.dark_e_s, exposure_s, codes, NORMAL_QUANTILES, float(cfg.read_noise_e**2),
-                              inv_g, cfg.dark_offset_dn, max_dn, frame)
+        readout.digitise_dark(signal, defects.dark_e_s, exposure_s, codes, NORMAL_QUANTILES, *_noise_model(cfg, 0.0),
+                              max_dn, frame)
     else:
         frame = _read_lit_parts(signal, boxes, np.concatenate(points), codes, cfg, dark_e, max_dn)
     if defects.dead_idx.size or defects.dead_columns.size:
