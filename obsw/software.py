@@ -834,9 +834,12 @@ class FlightSoftware:
                                   dimorphos_offset_px=None, didymos_offset_rad=None, dimorphos_offset_rad=None,
                                   threshold_dn8=0, background_dn8=0, noise_sigma_dn8=0.0,
                                   binned_size_px=self.cfg.imaging.binned_size_px)
-            # what the frame should show, from the trajectory the camera follows and the attitude at the exposure
+            # what the frame should show, from the attitude at the exposure and the best trajectory known on board:
+            # the recognised one once trusted, even before it is flown, since the ground's nominal can be seconds
+            # off in C/A time and then predicts Dimorphos hundreds of px from where it is
             prediction = predict_frame(self._attitude_at(meta.obt_s), self.cfg.targets, self.camera,
-                                       self.cfg.imaging, self.pointing_trajectory(), meta.obt_s)
+                                       self.cfg.imaging, self._recognised_trajectory() or self.pointing_trajectory(),
+                                       meta.obt_s)
             det = process_frame(frame, self.cfg.imaging, self.detections, self.camera, bad_pixels=self.bad_pixels,
                                 prediction=prediction)
         else:

@@ -10,8 +10,9 @@ rounded in another order: torques within 3e-16 N m of the previous record; and w
 its adjugate; recorded again when the recognition's continuous estimate was compiled, its 2x2 systems solved in
 closed form: over the nominal flyby the C/A estimates moved by at most 1.7e-6 s and 4e-7 km, within the solver's
 stopping tolerance, and the pointing error by 6e-11 rad; recorded again when the continuous estimate solved a
-constant offset of the line of sight and EstimateReport carried it, a change of flight behaviour on purpose), for the
-same seed.
+constant offset of the line of sight and EstimateReport carried it, a change of flight behaviour on purpose; recorded
+again when the imaging chain's prediction took the recognised trajectory as soon as it is trusted rather than the
+ground's nominal until the hand-over, a change of flight behaviour on purpose), for the same seed.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``
@@ -37,10 +38,10 @@ TIMELINE = {
     ],
 }
 RECORDED = {
-    "tm": "c4e160e7841c03c3ee950b06ff6e56d6b5e40766edc4e984dc720f8b2e20df7a",
-    "replies": "221772135ff3e6c4c2914eebdb1f92f9ff1c6ee86081a0070cff601d0b6fb24c",
+    "tm": "a12585f830177873352da151a307825a74bbcc155382e84afff86cc342286931",
+    "replies": "5cde5225691cd6ad366970b6ea5c1b7f2c9fd7bab765c6843dbfd4a95eafacea",
     "tc": "4ae2f0620faca055f1c6f0b1a13a5cbe6b79f2c2f489ba93e32d0c73a3ca5064",
-    "truth": "82455843389102848a63a5b926d86049f426b8ddf5c4586b4c639ee4d9a4f907",
+    "truth": "420d53996a72d957f232b55d5bb05c42e3678bc6c902be58a0b9079be3388c87",
     "n_tm": 122,
     "n_hk": 30,
     "frames": 40,
