@@ -430,6 +430,55 @@ class ImagingConfig(Config):
         description="move each body's centroid from its lit part to its centre by the phase-angle model of "
         "obsw/imaging_geometry.py (beyond the paper)",
     )
+    limb_fit: bool = Field(
+        True,
+        description="when Dimorphos is cut out of a region it shares with Didymos or the plume, check the cut's "
+        "centroid against the circle of its limb and take the limb's centre when they disagree "
+        "(obsw/imaging_limb.py, beyond the paper)",
+    )
+    limb_fit_min_radius_px: float = Field(
+        6.0,
+        gt=0,
+        description="the limb is fitted only when Dimorphos's smallest predicted apparent radius is at least this, "
+        "px at 512 scale: a smaller body's cut lies within a few px of its centre anyway, and its limb is too short "
+        "to fit",
+    )
+    limb_fit_max_phase_deg: float = Field(
+        60.0,
+        gt=0,
+        le=180,
+        description="the limb is fitted only at phase angles up to this, deg: beyond it the terminator, a soft "
+        "edge, takes more than a quarter of the body's radius off the lit disc",
+    )
+    limb_fit_pointing_margin_deg: float = Field(
+        0.06,
+        ge=0,
+        description="the circle's centre is searched within the prediction's uncertainty, the centroid noise and "
+        "this angle, deg: what the prediction does not model, the camera's misalignment to the star tracker "
+        "(3 sigma of the 0.02 deg one-sigma boresight dispersion, configs/dispersions/flyby.yaml)",
+    )
+    limb_fit_max_disagreement_radii: float = Field(
+        0.5,
+        ge=0,
+        description="the limb's centre replaces the cut's phase-corrected centroid only when they are more than this "
+        "many predicted radii apart: a cut holding the body's surface alone lies nearer, and is then the better of "
+        "the two (the nominal flyby: the cut within 1 px of the centre, the limb up to 0.35 radii off, the body "
+        "not a sphere), one holding Didymos's limb or the plume's core does not (the Monte Carlo cases: 0.8-1.3 "
+        "radii)",
+    )
+    limb_fit_max_search_px: float = Field(
+        24.0,
+        gt=0,
+        description="the limb is fitted only when the circle's centre is to be searched within at most this radius, "
+        "px at 512 scale: a prediction that precise comes from the recognised trajectory (the Monte Carlo cases: "
+        "about 16 px with the pointing margin); it bounds the fit's cost, about 1.7 million samples",
+    )
+    limb_fit_min_contrast: float = Field(
+        4.0,
+        gt=0,
+        description="the fitted circle is taken only when the median step along it is at least this many times the "
+        "median step over the searched window: a limb runs round most of it (the Monte Carlo cases: 9.5-21)",
+    )
 
 
 class TargetKnowledge(Config):

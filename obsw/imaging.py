@@ -13,7 +13,9 @@ order, a frame in, detections out:
 4. Feature extraction and identification (OBSW, ``obsw.imaging_identification``): area, region centroid, box,
    elongation and brightness of every blob; Didymos and Dimorphos told from stars, defects, the plume and pieces of
    a thin crescent by area, shape, the frame's predicted geometry (``obsw.imaging_geometry``) and continuity with
-   earlier frames; ejecta merged with a body trimmed off; each body's centroid corrected for the phase angle.
+   earlier frames; ejecta merged with a body trimmed off; each body's centroid corrected for the phase angle, and
+   Dimorphos's, when it was cut out of a region it shares with Didymos or the plume, taken from its limb
+   (``obsw.imaging_limb``).
 
 Image x (columns) is body +X, image y (rows) body +Y, the boresight body +Z; the image centre is at
 ((n - 1) / 2, (n - 1) / 2) in pixel-centre coordinates of the n x n binned image.
@@ -44,6 +46,7 @@ from obsw.imaging_filtering import (
 from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, offset_rad, predict_frame
 from obsw.imaging_identification import Blob, Regions, identify_bodies, phase_corrected
 from obsw.imaging_labelling import Components, connected_components
+from obsw.imaging_limb import limb_corrected
 
 __all__ = [
     "BadPixelMap", "Binarisation", "Blob", "Components", "Detections", "Filtered", "FrameError", "FramePrediction",
@@ -74,6 +77,7 @@ class Detections:
     bad_pixels: int = 0  # pixels the bad-pixel map replaced
     outliers: int = 0  # pixels the outlier filter replaced
     regions: int = 0  # 8-connected regions of the binarised image, the small ones included
+    limb_samples: int = 0  # gradient samples the limb fit of Dimorphos took (obsw.imaging_limb; 0: not fitted)
 
 
 def _offsets(blob: Blob | None, fov_deg: float, n: int) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
@@ -150,7 +154,8 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     r_did = None if prediction is None else prediction.didymos_radius_px
     r_dim = None if prediction is None else prediction.dimorphos_radius_px
     didymos = phase_corrected(didymos, r_did, prediction, cfg, camera.fov_deg)
-    dimorphos = phase_corrected(dimorphos, r_dim, prediction, cfg, camera.fov_deg)
+    dimorphos, limb_samples = limb_corrected(phase_corrected(dimorphos, r_dim, prediction, cfg, camera.fov_deg),
+                                             image.binned, prediction, cfg, camera.fov_deg)
     if pair is not None and age == 0:
         pair = (didymos, dimorphos)  # type: ignore[assignment]
     did_px, did_rad = _offsets(didymos, camera.fov_deg, n)
@@ -173,4 +178,5 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
         bad_pixels=image.bad_pixels,
         outliers=int(image.outliers.size),
         regions=int(components.area_px.size),
+        limb_samples=limb_samples,
     )

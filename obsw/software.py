@@ -422,13 +422,14 @@ class FlightSoftware:
     def _task_imaging(self, act: Activation) -> Work:
         """The software stage of the imaging chain for each frame out of the FPGA, oldest first."""
         frames = act.of(EventKind.FRAME_READY)
-        regions = pixels = 0
+        regions = pixels = samples = 0
         for ev in frames:
             frame, meta = ev.payload  # type: ignore[misc]
             det = self._image(frame, meta, act)
             regions += len(det.blobs)
             pixels += sum(b.area_px for b in det.blobs)
-        return Work(frames=len(frames), regions=regions, foreground_px=pixels)
+            samples += det.limb_samples
+        return Work(frames=len(frames), regions=regions, foreground_px=pixels, limb_samples=samples)
 
     def _task_recognition(self, act: Activation) -> Work:
         """The new measurements into the recognition, at their exposure time; the continuous estimate solved again."""

@@ -55,6 +55,12 @@ class TimingConfig(Config):
         40e-9, ge=0, description="FPGA region labelling, s per binned pixel: two passes (provisional labels and "
         "their equivalences, then relabelling), one pixel per clock at 50 MHz (estimate)"
     )
+    fpga_limb_s_per_sample: float = Field(
+        20e-9, ge=0, description="FPGA limb fit of Dimorphos (obsw/imaging_limb.py), s per gradient sample: the "
+        "software hands the FPGA the search window and waits; a pipelined sampler (bilinear gradient, radial "
+        "projection, running median) takes one sample per clock at 50 MHz (estimate); about 0.6 million samples, "
+        "12 ms, for Dimorphos 28 px across"
+    )
     time_s: float = Field(50e-6, ge=0, description=f"time management (OBT jump check, time report), s: 2,500 "
                           f"cycles of {_LEON}")
     telecommand_s: float = Field(
@@ -115,6 +121,7 @@ class Work:
     measurements: int = 0  # measurements in a continuous solve (0: not solved)
     checks: int = 0  # failed parameter checks and check transitions handled
     packets: int = 0  # report packets built
+    limb_samples: int = 0  # gradient samples of the FPGA's limb fit (obsw.imaging_limb)
 
 
 class TimingModel:
@@ -138,7 +145,8 @@ class TimingModel:
             return c.attitude_s
         if task == Task.IMAGING:
             return (c.imaging_s * work.frames + c.imaging_s_per_region * work.regions
-                    + c.imaging_s_per_foreground_pixel * work.foreground_px)
+                    + c.imaging_s_per_foreground_pixel * work.foreground_px
+                    + c.fpga_limb_s_per_sample * work.limb_samples)
         if task == Task.RECOGNITION:
             return (c.recognition_s + c.recognition_s_per_candidate * work.candidates
                     + c.recognition_s_per_measurement * work.measurements)

@@ -33,20 +33,20 @@ def test_frame_delay_is_linear_in_bits_and_binned_pixels(w, bits, rate, exposure
 
 
 @given(commands=counts, regions=counts, pixels=counts, frames=counts, candidates=counts, measurements=counts,
-       checks=counts, packets=counts)
+       checks=counts, packets=counts, samples=counts)
 def test_execution_times_are_fixed_plus_per_unit_of_work(commands, regions, pixels, frames, candidates,
-                                                        measurements, checks, packets) -> None:
+                                                        measurements, checks, packets, samples) -> None:
     """Each task's time is its fixed cost plus its per-unit costs times the work it reports, and nothing else."""
     c = TimingConfig()
     w = Work(commands=commands, regions=regions, foreground_px=pixels, frames=frames, candidates=candidates,
-             measurements=measurements, checks=checks, packets=packets)
+             measurements=measurements, checks=checks, packets=packets, limb_samples=samples)
     expected = {
         Task.TIME: c.time_s,
         Task.TELECOMMANDS: c.telecommand_s * commands,
         Task.SCHEDULE: c.schedule_s + c.telecommand_s * commands,
         Task.ATTITUDE: c.attitude_s,
         Task.IMAGING: c.imaging_s * frames + c.imaging_s_per_region * regions
-        + c.imaging_s_per_foreground_pixel * pixels,
+        + c.imaging_s_per_foreground_pixel * pixels + c.fpga_limb_s_per_sample * samples,
         Task.RECOGNITION: c.recognition_s + c.recognition_s_per_candidate * candidates
         + c.recognition_s_per_measurement * measurements,
         Task.MODES: c.modes_s,

@@ -1,0 +1,164 @@
+"""Dimorphos's centre from its limb, when it is cut out of a region it shares with Didymos or the plume (beyond the
+paper).
+
+Near C/A Dimorphos can pass in front of Didymos's limb with the plume's core behind it. Their surfaces are then as
+bright as Dimorphos's, the binarised region holds all three, and whatever part of it the chain cuts out by brightness
+(``imaging_identification.trimmed``) may hold Didymos's limb or the plume's core: in the Monte Carlo runs such a cut's
+centroid lay 12-18 px from Dimorphos's centre, above the paper's 15 px limit. Its outline still shows where it
+is: a body in front of everything draws a step of brightness all round its limb, whatever lies behind it, brighter
+or darker.
+
+``limb_centre`` finds the circle, centred within a search radius of the predicted place and of a radius the
+prediction allows, along which the image's brightness steps most: the median over the circle of the radial
+derivative's magnitude (the median, so that the step must run round most of the circle: an arc of Didymos's limb
+or the edge of the plume does not make one). A coarse pass on a 1 px grid, then a fine one on a quarter-pixel grid
+around the best circle (``_PASSES``). The circle's centre is the body's centre for a full disc; a lit sphere seen at phase
+angle g has its terminator within r (1 - cos g) of the limb on the dark side, and the phase correction of
+``imaging_geometry.phase_offset_px`` moves the centre back by about half of that.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numba import njit
+
+from obsw.config import ImagingConfig
+from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, phase_offset_px
+from obsw.imaging_identification import Blob
+
+
+@dataclass(frozen=True, slots=True)
+class LimbFit:
+    """The circle along which the brightness steps most: centre (col, row) and radius, px of the image searched; its
+    score (median radial step along it, image units per px) against the median step over the search window."""
+
+    col_row: tuple[float, float]
+    radius_px: float
+    score: float
+    window_median: float
+    samples: int  # gradient samples taken, the fit's cost (obsw.timing)
+
+
+# the search's passes: (half-width of the grid around the best circle so far, px, or None for the whole search;
+# grid step, px; samples per circle): the fine pass covers the coarse one's step around its best circle
+_PASSES: tuple[tuple[float | None, float, int], ...] = ((None, 1.0, 48), (1.0, 0.25, 48))
+
+
+@njit(cache=True, nogil=True)
+def _scores(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray,
+            cos_a: np.ndarray, sin_a: np.ndarray) -> np.ndarray:
+    """Median over the circle of |radial derivative| (bilinear samples of gx, gy) for each centre (cols[i],
+    rows[j]) and radius radii[k]; a sample outside the arrays counts as no step."""
+    h, w = gx.shape
+    n = cos_a.size
+    out = np.zeros((cols.size, rows.size, radii.size))
+    buf = np.empty(n)
+    for i in range(cols.size):
+        for j in range(rows.size):
+            for k in range(radii.size):
+                for a in range(n):
+                    x = cols[i] + radii[k] * cos_a[a]
+                    y = rows[j] + radii[k] * sin_a[a]
+                    x0 = int(math.floor(x))
+                    y0 = int(math.floor(y))
+                    if x0 < 0 or y0 < 0 or x0 + 1 >= w or y0 + 1 >= h:
+                        buf[a] = 0.0
+                        continue
+                    fx = x - x0
+                    fy = y - y0
+                    w00 = (1 - fx) * (1 - fy)
+                    w01 = fx * (1 - fy)
+                    w10 = (1 - fx) * fy
+                    w11 = fx * fy
+                    vx = w00 * gx[y0, x0] + w01 * gx[y0, x0 + 1] + w10 * gx[y0 + 1, x0] + w11 * gx[y0 + 1, x0 + 1]
+                    vy = w00 * gy[y0, x0] + w01 * gy[y0, x0 + 1] + w10 * gy[y0 + 1, x0] + w11 * gy[y0 + 1, x0 + 1]
+                    buf[a] = abs(vx * cos_a[a] + vy * sin_a[a])
+                out[i, j, k] = np.median(buf)
+    return out
+
+
+def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray, samples: int
+          ) -> tuple[float, float, float, float]:
+    ang = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)
+    s = _scores(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang))
+    i, j, k = np.unravel_index(int(np.argmax(s)), s.shape)
+    return float(cols[i]), float(rows[j]), float(radii[k]), float(s[i, j, k])
+
+
+def limb_centre(image: np.ndarray, place_col_row: tuple[float, float], search_px: float, radius_min_px: float,
+                radius_max_px: float) -> LimbFit | None:
+    """The circle of radius in [radius_min_px, radius_max_px], centred within ``search_px`` of ``place_col_row``,
+    along which ``image`` (2-D, any numeric type) steps most (module docstring); None when the search window
+    leaves the image or the radii are not positive and ordered."""
+    if not (0.0 < radius_min_px <= radius_max_px and search_px >= 0.0):
+        return None
+    if not all(math.isfinite(v) for v in (*place_col_row, search_px, radius_min_px, radius_max_px)):
+        return None
+    h, w = image.shape
+    reach = search_px + radius_max_px + 2.0
+    left, top = int(math.floor(place_col_row[0] - reach)), int(math.floor(place_col_row[1] - reach))
+    right, bottom = int(math.ceil(place_col_row[0] + reach)) + 1, int(math.ceil(place_col_row[1] + reach)) + 1
+    left, top, right, bottom = max(left, 0), max(top, 0), min(right, w), min(bottom, h)
+    if right - left < 3 or bottom - top < 3:
+        return None
+    crop = np.asarray(image[top:bottom, left:right], dtype=np.float64)
+    gy, gx = np.gradient(crop)
+    c, r = place_col_row[0] - left, place_col_row[1] - top
+    span = float(math.ceil(search_px))
+    offsets = np.arange(-span, span + 1e-9, 1.0)
+    radii = np.arange(radius_min_px, radius_max_px + 1.0 - 1e-9, 1.0)
+    count = 0
+    for half, step, n_samples in _PASSES:
+        if half is not None:  # a finer grid around the best circle so far
+            offsets = np.arange(-half, half + 1e-9, step)
+            radii = np.unique(np.clip(rad + offsets, radius_min_px, radius_max_px))
+        c, r, rad, score = _best(gx, gy, c + offsets, r + offsets, np.minimum(radii, radius_max_px), n_samples)
+        count += offsets.size ** 2 * radii.size * n_samples
+    window = float(np.median(np.hypot(gx, gy)))
+    return LimbFit(col_row=(c + left, r + top), radius_px=rad, score=score, window_median=window, samples=count)
+
+
+def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePrediction | None, cfg: ImagingConfig,
+                   fov_deg: float) -> tuple[Blob | None, int]:
+    """Dimorphos's blob (its centroid already phase-corrected) with its centroid moved to the centre of its fitted
+    limb (``limb_centre``, phase-corrected the same way) when the two disagree by more than
+    ``limb_fit_max_disagreement_radii`` of its predicted radius: a cut that holds the body's surface alone lies
+    nearer its centre than that, one that holds Didymos's limb or the plume's core does not. Fitted only when the
+    blob was cut out of a larger region (``trimmed_from``), the prediction gives its place (within
+    ``limb_fit_max_search_px`` with the margins) and size, it is resolved
+    (``limb_fit_min_radius_px``), lit at a low enough phase (``limb_fit_max_phase_deg``), and the limb found steps
+    clearly (``limb_fit_min_contrast``) within its largest radius of the cut; the blob unchanged otherwise. With it,
+    the gradient samples the fit took (0 when not fitted), its cost on the FPGA (``obsw.timing``)."""
+    if blob is None or not blob.trimmed_from or not cfg.limb_fit or prediction is None \
+            or prediction.dimorphos_col_row is None or prediction.dimorphos_radius_px is None \
+            or prediction.dimorphos_uncertainty_px is None or not math.isfinite(prediction.dimorphos_uncertainty_px):
+        return blob, 0
+    k = max(prediction.radius_factor_max, 1.0)
+    r_min, r_max = prediction.dimorphos_radius_px / k, prediction.dimorphos_radius_px * k
+    if r_min < cfg.limb_fit_min_radius_px:
+        return blob, 0
+    n = cfg.binned_size_px
+    place = prediction.dimorphos_col_row
+    los = los_body(place[0] - 0.5 * (n - 1), place[1] - 0.5 * (n - 1), fov_deg, n)
+    cos_g = float(np.clip(-(np.asarray(prediction.sun_camera) @ los), -1.0, 1.0))
+    if math.degrees(math.acos(cos_g)) > cfg.limb_fit_max_phase_deg:
+        return blob, 0
+    search = prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px \
+        + focal_length_px(fov_deg, n) * math.tan(math.radians(cfg.limb_fit_pointing_margin_deg))
+    if search > cfg.limb_fit_max_search_px:
+        return blob, 0
+    fit = limb_centre(image, place, search, r_min, r_max)
+    if fit is None:
+        return blob, 0
+    if fit.score < cfg.limb_fit_min_contrast * fit.window_median \
+            or math.dist(fit.col_row, blob.region_centroid_col_row) > r_max + cfg.blur_margin_px:
+        return blob, fit.samples
+    dc, dr = phase_offset_px(prediction.sun_camera, fit.col_row, fit.radius_px, fov_deg, n) \
+        if cfg.phase_correction else (0.0, 0.0)
+    centre = (fit.col_row[0] - dc, fit.col_row[1] - dr)
+    if math.dist(centre, blob.centroid_col_row) <= cfg.limb_fit_max_disagreement_radii * prediction.dimorphos_radius_px:
+        return blob, fit.samples
+    return replace(blob, centroid_col_row=centre), fit.samples
