@@ -1,20 +1,24 @@
 """Dimorphos's centre from its limb, when it is cut out of a region it shares with Didymos or the plume (beyond the
 paper).
 
-Near C/A Dimorphos can pass in front of Didymos's limb with the plume's core behind it. Their surfaces are then as
-bright as Dimorphos's, the binarised region holds all three, and whatever part of it the chain cuts out by brightness
-(``imaging_identification.trimmed``) may hold Didymos's limb or the plume's core: in the Monte Carlo runs such a cut's
-centroid lay 12-18 px from Dimorphos's centre, above the paper's 15 px limit. Its outline still shows where it
-is: a body in front of everything draws a step of brightness all round its limb, whatever lies behind it, brighter
-or darker.
+Near C/A Dimorphos can pass in front of Didymos's limb with the plume's core behind it. Didymos's surface and the
+plume's core are then as bright as Dimorphos, the binarised region holds all three, and whatever part of it the chain
+cuts out by brightness (``imaging_identification.trimmed``) may hold Didymos's limb or the plume's core: in the Monte
+Carlo runs such a cut's centroid lay 12-18 px from Dimorphos's centre, above the paper's 15 px limit. Its outline
+still shows where it is: a body in front of everything draws a step of brightness all round its limb, whatever lies
+behind it, brighter or darker.
 
-``limb_centre`` finds the circle, centred within a search radius of the predicted place and of a radius the
-prediction allows, along which the image's brightness steps most: the median over the circle of the radial
-derivative's magnitude (the median, so that the step must run round most of the circle: an arc of Didymos's limb
-or the edge of the plume does not make one). A coarse pass on a 1 px grid, then a fine one on a quarter-pixel grid
-around the best circle (``_PASSES``). The circle's centre is the body's centre for a full disc; a lit sphere seen at phase
-angle g has its terminator within r (1 - cos g) of the limb on the dark side, and the phase correction of
+``limb_centre`` finds the circle, centred about the predicted place and of a radius the prediction allows, along
+which the image's brightness steps most: the median over the circle of the radial derivative's magnitude (the
+median, so that the step must run round most of the circle: an arc of Didymos's limb or the edge of the plume does
+not make one). A coarse pass on a 1 px grid, then a fine one on a quarter-pixel grid around the best circle
+(``_PASSES``). The circle's centre is the body's centre for a full disc; a lit sphere seen at phase angle g has its
+terminator within r (1 - cos g) of the limb on the dark side, and the phase correction of
 ``imaging_geometry.phase_offset_px`` moves the centre back by about half of that.
+
+``limb_corrected`` takes the circle's centre only where the cut's centroid disagrees with it by more than half a
+radius: for a cut of the surface alone the centroid is the better of the two (the circle sits up to a third of a
+radius off a body that is not a sphere).
 """
 
 from __future__ import annotations
@@ -82,6 +86,7 @@ def _scores(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, 
 
 def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray, samples: int
           ) -> tuple[float, float, float, float]:
+    """The best circle of the grid (centre col, row, radius) and its score, ``samples`` points on each circle."""
     ang = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)
     s = _scores(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang))
     i, j, k = np.unravel_index(int(np.argmax(s)), s.shape)
@@ -90,9 +95,9 @@ def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, ra
 
 def limb_centre(image: np.ndarray, place_col_row: tuple[float, float], search_px: float, radius_min_px: float,
                 radius_max_px: float) -> LimbFit | None:
-    """The circle of radius in [radius_min_px, radius_max_px], centred within ``search_px`` of ``place_col_row``,
-    along which ``image`` (2-D, any numeric type) steps most (module docstring); None when the search window
-    leaves the image or the radii are not positive and ordered."""
+    """The circle of radius in [radius_min_px, radius_max_px], centred in the square of half-width ``search_px``
+    about ``place_col_row``, along which ``image`` (2-D, any numeric type) steps most (module docstring); None when
+    the search window leaves the image or the radii are not positive and ordered."""
     if not (0.0 < radius_min_px <= radius_max_px and search_px >= 0.0):
         return None
     if not all(math.isfinite(v) for v in (*place_col_row, search_px, radius_min_px, radius_max_px)):

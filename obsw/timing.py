@@ -58,8 +58,8 @@ class TimingConfig(Config):
     fpga_limb_s_per_sample: float = Field(
         20e-9, ge=0, description="FPGA limb fit of Dimorphos (obsw/imaging_limb.py), s per gradient sample: the "
         "software hands the FPGA the search window and waits; a pipelined sampler (bilinear gradient, radial "
-        "projection, running median) takes one sample per clock at 50 MHz (estimate); about 0.6 million samples, "
-        "12 ms, for Dimorphos 28 px across"
+        "projection, running median) takes one sample per clock at 50 MHz (estimate); up to 0.8 million samples, "
+        "16 ms, a fit in the nominal flyby (Dimorphos 28 px across)"
     )
     time_s: float = Field(50e-6, ge=0, description=f"time management (OBT jump check, time report), s: 2,500 "
                           f"cycles of {_LEON}")
