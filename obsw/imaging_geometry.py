@@ -115,14 +115,30 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
     )
 
 
+def _los_at(col_row: tuple[float, float], fov_deg: float, n: int) -> np.ndarray:
+    """The unit line of sight, body axes, of an image position (col, row) of the n x n binned image."""
+    return los_body(col_row[0] - 0.5 * (n - 1), col_row[1] - 0.5 * (n - 1), fov_deg, n)
+
+
+def _cos_phase(sun: np.ndarray, los: np.ndarray) -> float:
+    """Cosine of the phase angle at a body seen along ``los``, lit from ``sun`` (unit vectors, same axes)."""
+    return float(np.clip(-(sun @ los), -1.0, 1.0))
+
+
+def phase_angle_deg(sun_camera: tuple[float, float, float], col_row: tuple[float, float], fov_deg: float,
+                    n: int) -> float:
+    """The phase angle, deg, between the Sun and the camera seen from a body at image position ``col_row``."""
+    return math.degrees(math.acos(_cos_phase(np.asarray(sun_camera, dtype=float), _los_at(col_row, fov_deg, n))))
+
+
 def phase_offset_px(sun_camera: tuple[float, float, float], col_row: tuple[float, float], radius_px: float,
                     fov_deg: float, n: int) -> tuple[float, float]:
     """The (col, row) offset of the lit centroid of a spherical body of apparent radius ``radius_px`` seen at
     ``col_row`` from its centre: (4 / (3 pi)) r (1 - cos g) along the Sun's direction in the image, g the phase
     angle between the Sun and the camera seen from the body. Zero when the Sun is along the line of sight."""
-    los = los_body(col_row[0] - 0.5 * (n - 1), col_row[1] - 0.5 * (n - 1), fov_deg, n)
+    los = _los_at(col_row, fov_deg, n)
     sun = np.asarray(sun_camera, dtype=float)
-    cos_g = float(np.clip(-(sun @ los), -1.0, 1.0))
+    cos_g = _cos_phase(sun, los)
     # the Sun's direction across the line of sight, projected on the image axes
     across = sun - (sun @ los) * los
     d = math.hypot(across[0], across[1])

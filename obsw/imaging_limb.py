@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from obsw.config import ImagingConfig
-from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, phase_offset_px
+from obsw.imaging_geometry import FramePrediction, focal_length_px, phase_angle_deg, phase_offset_px
 from obsw.imaging_identification import Blob
 
 
@@ -147,9 +147,7 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
         return blob, 0
     n = cfg.binned_size_px
     place = prediction.dimorphos_col_row
-    los = los_body(place[0] - 0.5 * (n - 1), place[1] - 0.5 * (n - 1), fov_deg, n)
-    cos_g = float(np.clip(-(np.asarray(prediction.sun_camera) @ los), -1.0, 1.0))
-    if math.degrees(math.acos(cos_g)) > cfg.limb_fit_max_phase_deg:
+    if phase_angle_deg(prediction.sun_camera, place, fov_deg, n) > cfg.limb_fit_max_phase_deg:
         return blob, 0
     search = prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px \
         + focal_length_px(fov_deg, n) * math.tan(math.radians(cfg.limb_fit_pointing_margin_deg))
