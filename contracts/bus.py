@@ -116,7 +116,8 @@ class BusConfig(Config):
     """How the nodes find each other and how long they wait before declaring a peer dead."""
 
     reply_timeout_s: float = Field(10.0, gt=0, description="longest wait for a peer's answer to a step, wall s")
-    startup_timeout_s: float = Field(30.0, gt=0, description="longest wait for all nodes to come up, wall s")
+    # a node comes up once its kernels are compiled: about 40 s for the flight software's on 2 cores after an install
+    startup_timeout_s: float = Field(120.0, gt=0, description="longest wait for all nodes to come up, wall s")
     multicast_scouting: bool = Field(False, description="let Zenoh discover peers by multicast")
 
 

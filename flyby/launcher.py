@@ -100,7 +100,7 @@ def _progress_line(watch: Watch, end_s: float) -> str:
         u = watch.status.get("universe")
         o = watch.status.get("obsw")
     if u is None:
-        return "starting nodes (the first run after an install also compiles their kernels, about 20 s)..."
+        return "starting nodes (the first run after an install also compiles their kernels, about 40 s)..."
     rtf = f"{u.real_time_factor:6.1f}x" if u.real_time_factor is not None else "   -  "
     mode = o.mode if o is not None and o.mode else "-"
     return f"t = {u.sim_time_s:8.1f} s / {end_s:.1f} s   real-time factor {rtf}   mode {mode:<20}"

@@ -93,6 +93,13 @@ def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, ra
     return float(cols[i]), float(rows[j]), float(radii[k]), float(s[i, j, k])
 
 
+def warm_up() -> None:
+    """Compile (or load from the cache) the circle scores now, for the image types the chain gives."""
+    g = np.zeros((4, 4))
+    one = np.zeros(1)
+    _scores(g, g, one, one, one + 1.0, one + 1.0, one)
+
+
 def limb_centre(image: np.ndarray, place_col_row: tuple[float, float], search_px: float, radius_min_px: float,
                 radius_max_px: float) -> LimbFit | None:
     """The circle of radius in [radius_min_px, radius_max_px], centred in the square of half-width ``search_px``

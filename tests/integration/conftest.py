@@ -12,12 +12,16 @@ DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="session", autouse=True)
-def compiled_camera() -> None:
-    """Compile the camera's kernels once, before any node process needs them: the first run after an install pays
-    about 10 s for it (announced by ``flyby run``), which would otherwise eat into these tests' time windows."""
+def compiled_kernels() -> None:
+    """Compile the nodes' kernels once, before any node process needs them: the first run after an install pays
+    about 50 s for it (announced by ``flyby run``), which would otherwise eat into these tests' time windows."""
+    from obsw import kernels
+    from universe import attitude_rk4
     from universe.camera import warm_up
 
     warm_up()
+    attitude_rk4.warm_up()
+    kernels.warm_up()
 
 
 def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -42,10 +46,13 @@ def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     return outs[0], outs[1]
 
 
-def start_nodes(out: Path, scenario: Path, realtime: bool = True, credentials: Path | None = None
-                ) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
+def start_nodes(out: Path, scenario: Path, realtime: bool = True, credentials: Path | None = None,
+                hold: tuple[str, ...] = ()) -> tuple[dict[str, subprocess.Popen[bytes]], dict[str, str], str]:
     """Start the three nodes as separate processes (as on three hosts), over TLS with the identities in
-    ``credentials`` (plain TCP, ``--insecure``, when None); return them, their endpoints, the run id."""
+    ``credentials`` (plain TCP, ``--insecure``, when None); return them, their endpoints, the run id.
+
+    The nodes named in ``hold`` are not started: ``launch_held`` starts them later. The universe waits for every
+    node, so holding one back holds the run at its start, e.g. until a test's own session is listening."""
     from contracts.bus import free_tcp_port
 
     ports = {n: free_tcp_port() for n in ("universe", "obsw", "ground")}
@@ -59,11 +66,26 @@ def start_nodes(out: Path, scenario: Path, realtime: bool = True, credentials: P
         "obsw": ["--listen", ep["obsw"], "--connect", ep["universe"]],
         "ground": ["--listen", ep["ground"], "--connect", ep["universe"], "--connect", ep["obsw"]],
     }
-    procs = {}
+    procs: dict[str, subprocess.Popen[bytes]] = {}
+    _HELD[run_id] = {n: [sys.executable, "-m", n, *common, *a] for n, a in extra.items() if n in hold}
     for n, a in extra.items():
-        with open(out / f"{n}.log", "wb") as log:
-            procs[n] = subprocess.Popen([sys.executable, "-m", n, *common, *a], stdout=log, stderr=subprocess.STDOUT)
+        if n not in hold:
+            procs[n] = _launch(out, n, [sys.executable, "-m", n, *common, *a])
     return procs, ep, run_id
+
+
+_HELD: dict[str, dict[str, list[str]]] = {}  # run id -> the command lines of the nodes held back at its start
+
+
+def _launch(out: Path, name: str, argv: list[str]) -> subprocess.Popen[bytes]:
+    with open(out / f"{name}.log", "wb") as log:
+        return subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT)
+
+
+def launch_held(out: Path, run_id: str, procs: dict[str, subprocess.Popen[bytes]]) -> None:
+    """Start the nodes ``start_nodes`` held back for ``run_id``, adding them to ``procs``."""
+    for name, argv in _HELD.pop(run_id).items():
+        procs[name] = _launch(out, name, argv)
 
 
 def _insecure_keys(out: Path) -> Path:

@@ -19,7 +19,7 @@ from contracts import pus, sdls
 from contracts.bus import Keys, TlsIdentity, session_config
 from contracts.messages import GroundReply, GroundStep, OperatorCommand, SensorData, StepRequest, decode, encode
 from flyby.credentials import write_credentials
-from tests.integration.conftest import DATA, start_nodes, stop_nodes
+from tests.integration.conftest import DATA, launch_held, start_nodes, stop_nodes
 
 pytestmark = pytest.mark.integration
 
@@ -59,11 +59,14 @@ def test_attacks_on_a_running_flyby_are_refused(tmp_path: Path) -> None:
     write_credentials(creds)
     out = tmp_path / "run"
     out.mkdir()
-    procs, ep, run_id = start_nodes(out, DATA / "security.yaml", realtime=False, credentials=creds)
+    # ground is held back until the attacker listens: the universe starts (and ground uplinks) only once every node
+    # is up, so the unpaced run cannot radiate its uplink before the attacker hears it
+    procs, ep, run_id = start_nodes(out, DATA / "security.yaml", realtime=False, credentials=creds, hold=("ground",))
     keys = Keys(run_id)
     captured: list[bytes] = []  # units radiated by the real ground, heard on the spacecraft's uplink
     arrived: queue.SimpleQueue[tuple[bytes, ...]] = queue.SimpleQueue()
     ground_steps: queue.SimpleQueue[int] = queue.SimpleQueue()
+    ground: zenoh.Session | None = None
     try:
         # as ground (its certificate stolen): listen to the uplink and to the ground steps; this is allowed
         ground = zenoh.open(session_config(connect=list(ep.values()), tls=TlsIdentity.in_folder(creds, "ground")))
@@ -79,7 +82,12 @@ def test_attacks_on_a_running_flyby_are_refused(tmp_path: Path) -> None:
 
         subs = [ground.declare_subscriber(keys.step, on_step),
                 ground.declare_subscriber(keys.ground_step, on_ground_step)]
+        # the universe answering a liveliness query proves the link is up and the subscriptions (declared before the
+        # query, on the same link) have reached it
         deadline = time.monotonic() + WINDOW_S
+        while not [t for t in ground.liveliness().get(keys.alive("universe"), timeout=2.0) if t.ok is not None]:
+            assert time.monotonic() < deadline and procs["universe"].poll() is None, "the universe was never seen"
+        launch_held(out, run_id, procs)
         while not captured:  # woken by the first uplink heard
             assert time.monotonic() < deadline and procs["universe"].poll() is None, "the uplink was never heard"
             try:
@@ -143,6 +151,8 @@ def test_attacks_on_a_running_flyby_are_refused(tmp_path: Path) -> None:
         codes = {n: p.wait(timeout=120) for n, p in procs.items()}
         assert codes == {"universe": 0, "obsw": 0, "ground": 0}, codes
     finally:
+        if ground is not None:
+            ground.close()  # a session left open with live callbacks can hold up the interpreter's exit
         stop_nodes(procs)
 
     tm = [pus.decode_tm(p) for p in pus.split_packets((out / "tm.bin").read_bytes())]
