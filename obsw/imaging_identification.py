@@ -17,7 +17,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
   of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
-  be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A).
+  be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A). When
+  Didymos may be off the image (the orbit's reach from Dimorphos's place crosses the edge) and the candidate chosen
+  is where the trajectory puts Dimorphos with a lit surface (``surface_pixels``: the dust around it is fainter) under
+  the geometric mean of the two bodies' expected areas, it is Dimorphos, cut to its surface, and Didymos is not seen.
 - **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
   trimmed to its brightest pixels of the expected area of both bodies, the 8-connected parts of which take its
   place; a blob with room for both is split the same way when a part of it is Dimorphos (no larger than Dimorphos
@@ -641,11 +644,13 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         if not likely:
             return None, None
     didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions)
-    if place is not None and exp is not None and didymos.area_px < math.sqrt(exp.didymos_area * exp.dimorphos_area) \
+    if place is not None and exp is not None and _surface_area(regions, didymos, exp) < math.sqrt(
+            exp.didymos_area * exp.dimorphos_area) \
             and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
             and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max):
-        # no blob of Didymos's size: a Dimorphos-sized blob where Dimorphos is expected, Didymos out of the image
-        return None, didymos
+        # no blob with a lit surface of Didymos's size: a Dimorphos-sized surface (with the ejecta it holds) where
+        # Dimorphos is expected, Didymos out of the image
+        return None, _dimorphos_surface(regions, didymos, exp, next_label, place, cfg)
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
         # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
         cands, likely, didymos, next_label = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg,
@@ -693,16 +698,32 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
             centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
             if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions)
-    if dimorphos is not None and exp is not None and regions is not None and (
+    if dimorphos is not None and exp is not None:
+        dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
+    return didymos, dimorphos
+
+
+def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:
+    """A blob's area without the fainter dust around a surface: its pixels at least halfway from the threshold to the
+    typical level of its brightest Dimorphos's expected area (``surface_pixels``); its whole area without the
+    regions."""
+    if regions is None:
+        return blob.area_px
+    return min(blob.area_px, surface_pixels(regions, blob, round(exp.dimorphos_area)))
+
+
+def _dimorphos_surface(regions: Regions | None, dimorphos: Blob, exp: Expected, next_label: int,
+                       place: _Place | None, cfg: ImagingConfig) -> Blob:
+    """The blob taken for Dimorphos, trimmed to its surface (``trimmed``) when it is larger than Dimorphos can be,
+    cut out of a blob that held ejecta, or a resolved disc (the point-spread function's reach, psf_reach_px, under
+    half its radius) larger than expected, perhaps with dust brighter than the threshold around it."""
+    if regions is not None and (
             dimorphos.area_px > exp.dimorphos_area_max
             or dimorphos.area_px > exp.dimorphos_area and (
                 dimorphos.trimmed_from
                 or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * psf_reach_px(cfg))):
-        # larger than Dimorphos can be, cut out of a blob that held ejecta, or a resolved disc (the point-spread
-        # function's reach, psf_reach_px, under half its radius) larger than expected, perhaps with dust
-        # brighter than the threshold around it: keep its surface
-        dimorphos = trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
-    return didymos, dimorphos
+        return trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
+    return dimorphos
 
 
 def phase_corrected(blob: Blob | None, radius_px: float | None, prediction: FramePrediction | None,

@@ -84,3 +84,15 @@ def test_samples_kept_on_disk_come_back_equal(tmp_path) -> None:  # type: ignore
     for name, value in vars(s).items():
         np.testing.assert_array_equal(getattr(back, name), value)
     assert not list(tmp_path.glob("*.part"))
+
+
+def test_the_shipped_fits_are_models_flyby_mc_takes() -> None:
+    """Every model file in configs/centroid-models is one ``flyby mc --centroid-model`` accepts."""
+    from pathlib import Path
+
+    from flyby.montecarlo.campaign import centroid_model_file
+
+    files = sorted((Path(__file__).parents[2] / "configs" / "centroid-models").glob("*.yaml"))
+    assert files
+    for path in files:
+        CentroidModelConfig(**centroid_model_file(path))

@@ -380,3 +380,61 @@ def test_continuity_gate_is_never_wider_than_didymos_can_be(did_r: float, k: flo
     largest = CFG.dimorphos_max_relative_jump_didymos_diameters * 2.0 * exp.didymos_radius_max + CFG.centroid_noise_px
     assert _relative_jump_px(blob, CFG, exp) <= largest + 1e-9
     assert _relative_jump_px(blob, CFG, exp) == pytest.approx(min(_relative_jump_px(blob, CFG), largest))
+
+
+def _didymos_off_the_edge(rng: np.random.Generator) -> Scene:
+    """Near C/A, Didymos's centre beyond an edge of the image (a sliver of its limb inside), Dimorphos resolved in
+    the image with a fan of dust from it, as bright as its surface at the source: its region holds more pixels
+    than Dimorphos can, and more light than Didymos's sliver."""
+    focal = 1024.0 / (2.0 * math.tan(math.radians(1.45)))
+    range_m = float(rng.uniform(55e3, 70e3))
+    px_per_m = focal / range_m
+    did_r, dim_r = 390.0 * px_per_m, 82.0 * px_per_m
+    edge = int(rng.integers(4))
+    along = float(rng.uniform(300.0, 724.0))
+    beyond = float(rng.uniform(0.75, 0.95)) * did_r  # Didymos's centre this far outside the edge
+    did = {0: (along, -beyond), 1: (1023.0 + beyond, along), 2: (along, 1023.0 + beyond), 3: (-beyond, along)}[edge]
+    inward = {0: (0.0, 1.0), 1: (-1.0, 0.0), 2: (0.0, -1.0), 3: (1.0, 0.0)}[edge]
+    gap = float(rng.uniform(250.0, 420.0))  # centre to centre, px, within the orbit's 1.19 km
+    dim = (did[0] + gap * inward[0] + rng.uniform(-60, 60) * inward[1],
+           did[1] + gap * inward[1] + rng.uniform(-60, 60) * inward[0])
+    radiance = float(rng.uniform(1500.0, 3000.0))
+    bodies = (
+        Ellipsoid(did[0], did[1], range_m + 1000.0, (did_r, did_r * 0.95, did_r * 0.9), (0.0, 0.0, 0.0, 1.0),
+                  radiance, "lunar-lambert", 0.5),
+        Ellipsoid(dim[0], dim[1], range_m, (dim_r * 1.1, dim_r, dim_r * 0.95), (0.0, 0.0, 0.0, 1.0),
+                  radiance * rng.uniform(0.9, 1.1), "lunar-lambert", 0.5),
+    )
+    away = math.degrees(math.atan2(-inward[1], -inward[0])) + 180.0  # the fan points into the image
+    fan = Plume(axis_deg=float(away + rng.uniform(-40, 40)), half_angle_deg=float(rng.uniform(15.0, 30.0)),
+                length_px=dim_r * 12.0, brightness_dn=radiance * rng.uniform(0.3, 0.5), exponent=1.0)
+    return Scene(bodies=bodies, range_m=range_m, phase_deg=float(rng.uniform(20.0, 50.0)),
+                 sun_azimuth_deg=float(rng.uniform(0.0, 360.0)), plume=fan)
+
+
+def test_dimorphos_with_its_dust_is_not_taken_for_didymos_off_the_edge() -> None:
+    """When Didymos is mostly off the image and the trajectory's place allows it, a region whose lit surface is of
+    Dimorphos's size (with a fan of dust around it larger than Dimorphos can be) is Dimorphos, reported within 4
+    binned px of its centre, and never Didymos (the independent generator, against its truth)."""
+    checked = 0
+    for seed in range(12):
+        rng = np.random.default_rng([2028, seed])
+        scene = _didymos_off_the_edge(rng)
+        prediction = prediction_for(scene, rng, place_sigma_px=30.0)
+        frame = render(scene, np.random.default_rng(seed))
+        det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
+        truth = frame.truth[1]
+        c, r = truth.centre_512
+        holding = [b.area_px for b in det.blobs if not b.trimmed_from and b.bbox_col_row_w_h[0] <= c
+                   < b.bbox_col_row_w_h[0] + b.bbox_col_row_w_h[2] and b.bbox_col_row_w_h[1] <= r
+                   < b.bbox_col_row_w_h[1] + b.bbox_col_row_w_h[3]]
+        exp = expected(prediction, CFG)
+        assert exp is not None
+        if not holding or max(holding) <= exp.dimorphos_area_max:
+            continue  # the dust fell below the threshold: not this case
+        checked += 1
+        assert det.dimorphos is not None, f"seed {seed}: Dimorphos not reported"
+        assert math.dist(det.dimorphos.centroid_col_row, truth.centre_512) <= 4.0, (seed, det.dimorphos)
+        assert det.didymos is None or math.dist(det.didymos.region_centroid_col_row, truth.centre_512) > 2 * \
+            prediction.dimorphos_radius_px, (seed, det.didymos)
+    assert checked >= 6
