@@ -644,10 +644,10 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         if not likely:
             return None, None
     didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions)
-    if place is not None and exp is not None and _surface_area(regions, didymos, exp) < math.sqrt(
-            exp.didymos_area * exp.dimorphos_area) \
-            and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
-            and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max):
+    # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
+    if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
+            and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max) \
+            and _surface_area(regions, didymos, exp) < math.sqrt(exp.didymos_area * exp.dimorphos_area):
         # no blob with a lit surface of Didymos's size: a Dimorphos-sized surface (with the ejecta it holds) where
         # Dimorphos is expected, Didymos out of the image
         return None, _dimorphos_surface(regions, didymos, exp, next_label, place, cfg)
