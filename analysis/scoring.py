@@ -2,8 +2,9 @@
 summary lines, figures.json, the report's requirement table and the closed-loop benchmark, so they never disagree.
 
 The requirements (thresholds in ``ground.config.ReportConfig``, each with its source): Dimorphos in the field of
-view in enough camera frames, and the pointing error never above half the field of view, from the first
-ACQUISITION to C/A + ``in_view_after_ca_s``; the peak body rate reached; every detected Dimorphos centroid near
+view in enough camera frames, and the pointing error never above half the field of view, from the first camera
+frame of the first ACQUISITION (``window_start_obt_s``; the paper: the target kept in the field of view during the
+scientific activities, the imaging) to C/A + ``in_view_after_ca_s``; the peak body rate reached; every detected Dimorphos centroid near
 its true projection. The on-board C/A estimates standing at C/A - ``estimate_before_ca_s`` are scored against
 the true C/A to Dimorphos (``analysis.closest_approach``), the body the camera measures.
 """
@@ -22,6 +23,7 @@ from ground.config import ReportConfig
 from analysis.closest_approach import didymos_barycentre_ca, dimorphos_ca
 from analysis.runfolder import RunData
 from analysis.telemetry import Telemetry
+from analysis.truth import Truth
 
 PAPER = "the LICIACube navigation paper"
 
@@ -113,7 +115,7 @@ class RunFigures(Frozen):
         in_view = None if self.in_view_fraction is None else 100 * self.in_view_fraction
         return [
             RequirementRow(
-                f"target in view from the first ACQUISITION to C/A+{self.window_end_after_ca_s():g} s",
+                f"target in view from the first frame of ACQUISITION to C/A+{self.window_end_after_ca_s():g} s",
                 f">= {100 * self.in_view_required:g}%",
                 num(f"{_fmt(in_view, '.2f')}% of {self.in_view_basis}", in_view, "no truth in the window"),
                 self.in_view_pass, f"{PAPER}: asteroid in the FoV 98% of the time (nominal), > 90% (worst cases)"),
@@ -185,6 +187,18 @@ def acquisition_start_obt_s(tm: Telemetry | None) -> float | None:
     return min(starts) if starts else None
 
 
+def window_start_obt_s(tm: Telemetry | None, truth: Truth | None) -> float | None:
+    """OBT the requirement window opens, s: the first camera frame (truth row with a frame) at or after the first
+    ACQUISITION; the first ACQUISITION when no frame follows it, or no truth is kept; None without an ACQUISITION.
+    The attitude at ACQUISITION's entry is STANDBY's, wherever the target has drifted since: the paper asks for the
+    target in the field of view during the imaging, which the timeline starts once the slew onto it is done."""
+    start = acquisition_start_obt_s(tm)
+    if start is None or truth is None:
+        return start
+    frames = truth.obt_s[(truth.frame_id >= 0) & (truth.obt_s >= start)]
+    return float(frames.min()) if frames.size else start
+
+
 def centroid_errors_px(data: RunData) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """(frame ids, distance binned px) between each detected Dimorphos centroid and its true projection."""
     if data.truth is None or data.telemetry is None:
@@ -231,13 +245,14 @@ def score_run(data: RunData, cfg: ReportConfig) -> tuple[RunFigures, list[str]]:
         f"Didymos barycentre C/A (the scenario's universe.flyby, what ground's nominal trajectory describes): "
         f"C/A{bary.obt_s - ca.obt_s:+.3f} s, {bary.distance_km:.3f} km; the estimates against it are shown beside",
     ]
-    start = acquisition_start_obt_s(tm)
+    start = window_start_obt_s(tm, truth)
     if start is None:
         start = ca.obt_s - sc.obsw.modes.acquisition_before_ca_s
         notes.append(f"no ModeChangedEvent into ACQUISITION in the telemetry: the window starts at C/A-"
                      f"{sc.obsw.modes.acquisition_before_ca_s:g} s (obsw.modes.acquisition_before_ca_s)")
     end = ca.obt_s + cfg.in_view_after_ca_s
-    notes.append(f"window: C/A{start - ca.obt_s:+.1f} s (first ACQUISITION) to C/A+{cfg.in_view_after_ca_s:g} s")
+    notes.append(f"window: C/A{start - ca.obt_s:+.1f} s (the first frame of the first ACQUISITION) to "
+                 f"C/A+{cfg.in_view_after_ca_s:g} s")
     in_view = max_err = peak = None
     basis = "camera frames"
     if truth is not None:

@@ -5,7 +5,7 @@ Runs each scenario (by default over Zenoh, the three processes, ``flyby run <sce
 the report's own scoring function (``analysis.scoring.score_run``: the figures of figures.json, the run summary
 and the report's requirement table), with the in-view requirement raised to issue 4's targets:
 
-    in view     fraction of camera frames with Dimorphos in the FOV, first ACQUISITION to C/A+60 s
+    in view     fraction of camera frames with Dimorphos in the FOV, first frame of ACQUISITION to C/A+60 s
     max err     largest true pointing error (boresight to Dimorphos) in that window, deg
     peak rate   largest true body rate of the run, deg/s
     C/A errors  the on-board estimates standing at true C/A-30 s (EstimateReport), grid and continuous, minus the

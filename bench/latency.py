@@ -9,7 +9,7 @@ tracking loop takes each late measurement either at its exposure time, carried t
 (``obsw.tracking.propagate_late_measurements: true``, the flight software's default), or as if it had been
 exposed when it arrived (false). Each run is scored by the report's own scoring (``analysis.scoring.score_run``)
 with bench/closedloop.py's thresholds: in view at least 99.5 % of the frames for the nominal (98 % for the
-others), pointing error at most half the 2.9 deg field of view, from the first ACQUISITION to C/A+60 s. Beside
+others), pointing error at most half the 2.9 deg field of view, from the first frame of ACQUISITION to C/A+60 s. Beside
 them, the largest pointing error within 60 s of C/A, where the line of sight turns fastest (the window's largest
 is at acquisition while the latency does not matter).
 

@@ -264,6 +264,21 @@ class ModesConfig(Config):
     autonomous_before_ca_s: float = Field(30.0, gt=0, description="enter AUTONOMOUS_TRACKING this long before C/A, s")
     standby_after_ca_s: float = Field(90.0, gt=0, description="return to STANDBY this long after C/A, s")
     target_lost_timeout_s: float = Field(10.0, gt=0, description="declare the target lost after this long unseen, s")
+    acquisition_settle_deg: float = Field(
+        0.3,
+        ge=0,
+        description="ACQUISITION entered from STANDBY or SAFE exposes its first frame once the estimated boresight is "
+        "within this of the reference's, deg: the slew onto the target done. STANDBY holds its attitude while the "
+        "target drifts, and the Monte Carlo late corners entered ACQUISITION up to 1.56 deg off, past half the "
+        "field of view, where a frame at once is taken mid-slew; the ground's nominal line of sight is itself up "
+        "to 0.8 deg off at a 3-sigma corner's C/A-210 s, and 0.3 deg more stays within the 1.45 deg half field",
+    )
+    acquisition_settle_timeout_s: float = Field(
+        20.0,
+        gt=0,
+        description="... or this long after the entry, whichever comes first, s (a slew of 1.6 deg settles within "
+        "6 s; a slower one, a failed wheel, still gets its frames)",
+    )
 
 
 class ImagingConfig(Config):

@@ -160,6 +160,9 @@ class FlightSoftware:
         self.frame_period_s = cfg.camera.frame_period_s
         self.exposure_s = cfg.camera.exposure_s
         self._next_frame_obt: float | None = None
+        # OBT of an entry into ACQUISITION from rest: no frame is exposed before the slew onto the target is done
+        self._settle_since_obt: float | None = None
+        self._reference_obt: float | None = None  # OBT the pointing reference (last_reference) was computed for
         self._counters = TmCounters()
         self.attitude = AttitudeEstimator(cfg.attitude)
         self.monitor = ParameterMonitor(cfg.monitoring)
@@ -583,7 +586,7 @@ class FlightSoftware:
             self._last_seen_obt += step_s
         if self._outage_start is not None:
             self._outage_start += step_s
-        for name in ("_next_frame_obt", "_hk_next", "_time_report_next"):
+        for name in ("_next_frame_obt", "_hk_next", "_time_report_next", "_settle_since_obt", "_reference_obt"):
             if getattr(self, name) is not None:
                 setattr(self, name, getattr(self, name) + step_s)
         self._estimate_next += step_s
@@ -915,8 +918,24 @@ class FlightSoftware:
     def _frame_request(self, obt: float) -> FrameRequest | None:
         if not self.imaging or self._next_frame_obt is None or obt < self._next_frame_obt:
             return None
+        if self._settle_since_obt is not None:
+            if obt < self._settle_since_obt + self.cfg.modes.acquisition_settle_timeout_s and not self._settled():
+                return None
+            self._settle_since_obt = None
+            self._next_frame_obt = obt  # the cadence counts from the first frame, not from the held ones
         self._next_frame_obt = max(self._next_frame_obt + self.frame_period_s, obt)
         return FrameRequest(exposure_s=self.exposure_s)
+
+    def _settled(self) -> bool:
+        """The estimated boresight within ``modes.acquisition_settle_deg`` of the reference computed in
+        ACQUISITION after its entry (``_settle_since_obt``)."""
+        ref = self.last_reference
+        if ref is None or self._reference_obt is None or self._settle_since_obt is None \
+                or self.modes.mode != Mode.ACQUISITION or self._reference_obt <= self._settle_since_obt:
+            return False
+        aim = Rotation.from_quat(ref.q_des).apply(self.camera.boresight_body)
+        return boresight_error_rad(self._q, self.camera.boresight_body, aim) \
+            <= math.radians(self.cfg.modes.acquisition_settle_deg)
 
     # -- modes ---------------------------------------------------------------------------------------------
     def _mode_event(self, ev: ModeEvent | None, obt: float) -> None:
@@ -933,6 +952,8 @@ class FlightSoftware:
             self._event(pus.TargetLostEvent(unseen_s=obt - self._last_seen_obt), obt, "target lost")
         if ev.to_mode in POINTING_MODES and not self.imaging:
             self.imaging, self._next_frame_obt = True, self._tick_s()
+        self._settle_since_obt = obt if ev.to_mode == Mode.ACQUISITION and ev.from_mode in (Mode.STANDBY, Mode.SAFE) \
+            else None
         if ev.to_mode == Mode.AUTONOMOUS_TRACKING and self.recognizer is not None and self.trajectory is not None:
             t_ca, d_ca = self.best_estimate()
             self.trajectory = self.trajectory.with_ca(t_ca, d_ca)
@@ -1000,7 +1021,7 @@ class FlightSoftware:
                 self.tracking.reset()
             ref = Reference(q_des=q if self.last_reference is None else self.last_reference.q_des,
                             omega_des_body=np.zeros(3), alpha_des_body=np.zeros(3))
-        self.last_reference = ref
+        self.last_reference, self._reference_obt = ref, obt
         if seen is not None:  # the boresight at the exposure against the LOS measured then
             q_exposure = self._attitude_at(seen.exposure_obt_s)
             self.pointing_error_est_rad = boresight_error_rad(q_exposure, self.camera.boresight_body,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from analysis.runfolder import RunData
-from analysis.scoring import RunFigures, acquisition_start_obt_s, score_run
+from analysis.scoring import RunFigures, score_run, window_start_obt_s
 from contracts import pus
 from ground.config import ReportConfig
 
@@ -54,8 +54,9 @@ EVENT_NAMES: tuple[str, ...] = tuple(sorted(cls.__name__ for cls in pus.DICTIONA
 
 
 def detection_latency_s(data: RunData) -> float | None:
-    """OBT from the first ACQUISITION to the first TargetAcquiredEvent, s; None if either never came."""
-    start = acquisition_start_obt_s(data.telemetry)
+    """OBT from the requirement window's start (the first frame of the first ACQUISITION, ``window_start_obt_s``)
+    to the first TargetAcquiredEvent, s; None if either never came."""
+    start = window_start_obt_s(data.telemetry, data.truth)
     if start is None or data.telemetry is None:
         return None
     acquired = [t for t, ev in data.telemetry.events if isinstance(ev, pus.TargetAcquiredEvent) and t >= start]

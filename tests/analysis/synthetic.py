@@ -58,8 +58,9 @@ def dimorphos_from_spacecraft_m(t_s: float) -> np.ndarray:
     return np.array([-SPEED_M_S * (t_s - CA_T), -CA_D_KM * 1e3, 0.0])
 
 
-def truth_record(j: int, max_err_deg: float) -> TruthRecord:
-    """Truth row j (t = j / 10 - 132): pointing, view and rate series set so their figures are known."""
+def truth_record(j: int, max_err_deg: float, entry_err_deg: float = 0.5) -> TruthRecord:
+    """Truth row j (t = j / 10 - 132): pointing, view and rate series set so their figures are known;
+    ``entry_err_deg`` on the rows between ACQUISITION's entry (C/A-240.25 s) and its first frame (C/A-239.5 s)."""
     t = j / 10 - 132.0
     tau = t - CA_T
     k = frame_k(j)
@@ -70,6 +71,8 @@ def truth_record(j: int, max_err_deg: float) -> TruthRecord:
         err_deg, in_fov = 5.0, False
     else:
         err_deg, in_fov = 0.5, True
+    if -240.25 <= tau < -239.5:
+        err_deg = entry_err_deg  # the slew onto the target, before the first frame
     if abs(tau - 10.2) < 1e-9:
         err_deg = max_err_deg  # the window's worst pointing, on a row without a frame
     if k is not None and k in OUT_OF_VIEW_KS:
@@ -133,8 +136,8 @@ def telemetry_reports(outlier_px: float | None) -> list[tuple[float, pus.TmRepor
 
 
 def make_run(run: Path, *, max_err_deg: float = MAX_ERR_IN_WINDOW_DEG, outlier_px: float | None = None,
-             telemetry: bool = True, frames: bool = True, truth_rows: int = 4200, cfg: ReportConfig | None = None
-             ) -> Path:
+             telemetry: bool = True, frames: bool = True, truth_rows: int = 4200, cfg: ReportConfig | None = None,
+             entry_err_deg: float = 0.5) -> Path:
     """Write a synthetic run folder: scenario.yaml, truth.csv, and optionally tm.bin + archive.sqlite and PNGs."""
     run.mkdir(parents=True, exist_ok=True)
     sc = scenario()
@@ -143,7 +146,7 @@ def make_run(run: Path, *, max_err_deg: float = MAX_ERR_IN_WINDOW_DEG, outlier_p
     (run / "scenario.yaml").write_text(yaml.safe_dump(sc.model_dump(mode="json")))
     log = TruthLog(run / "truth.csv")
     for j in range(truth_rows):
-        log.add(truth_record(j, max_err_deg))
+        log.add(truth_record(j, max_err_deg, entry_err_deg))
     log.close()
     if telemetry:
         with Archive(run / "archive.sqlite", tm_bin=run / "tm.bin") as archive:

@@ -30,11 +30,12 @@ from tests.analysis.synthetic import (
 
 
 def test_figures_match_the_construction(full_run) -> None:
-    """In-view fraction counts frames in the window, max pointing error is the window's, rate peak and centroids."""
+    """In-view fraction counts frames in the window (from ACQUISITION's first frame), max pointing error is the
+    window's, rate peak and centroids."""
     _, _, figs = full_run
     assert figs.true_ca_obt_s == pytest.approx(CA_OBT, abs=1e-6)
     assert figs.true_ca_distance_km == pytest.approx(CA_D_KM, abs=1e-9)
-    assert figs.window_obt_s == pytest.approx((CA_OBT - 240.25, CA_OBT + 60.0), abs=1e-4)
+    assert figs.window_obt_s == pytest.approx((CA_OBT - 239.5, CA_OBT + 60.0), abs=1e-4)
     assert figs.in_view_fraction == pytest.approx(IN_VIEW_EXPECTED)
     assert figs.max_pointing_error_deg == pytest.approx(MAX_ERR_IN_WINDOW_DEG)
     assert figs.peak_rate_deg_s == pytest.approx(PEAK_RATE_DEG_S)
@@ -109,6 +110,17 @@ def test_pointing_and_centroid_failures(tmp_path: Path) -> None:
     assert figs.max_centroid_error_px == pytest.approx(20.0, abs=1e-3)
     assert figs.centroid_pass is False
     assert figs.in_view_pass and figs.rate_pass and not figs.all_pass
+
+
+def test_the_slew_before_acquisitions_first_frame_is_not_scored(tmp_path: Path) -> None:
+    """The pointing window opens at ACQUISITION's first frame: 3 deg off between the entry and that frame (the slew
+    onto the target) fails nothing; the same 3 deg on a row after it fails the pointing requirement."""
+    run = make_run(tmp_path / "slew", entry_err_deg=3.0, telemetry=True, frames=False)
+    figs, _ = score_run(load_run(run), ReportConfig(in_view_required=0.9))
+    assert figs.window_obt_s[0] == pytest.approx(CA_OBT - 239.5, abs=1e-4)
+    assert figs.max_pointing_error_deg == pytest.approx(MAX_ERR_IN_WINDOW_DEG) and figs.pointing_pass
+    late = make_run(tmp_path / "late", max_err_deg=3.0, frames=False)
+    assert score_run(load_run(late), ReportConfig(in_view_required=0.9))[0].pointing_pass is False
 
 
 def test_truth_cut_before_ca(tmp_path: Path) -> None:

@@ -217,7 +217,7 @@ def test_frame_faults_and_a_clock_jump_replay_identically(tmp_path: Path) -> Non
     d = scenario.model_dump(mode="json")
     d["universe"]["faults"] = [
         {"kind": "clock_jump", "start_s": 120.05, "end_s": 120.05, "magnitude": 2.5},
-        {"kind": "frame_lost", "start_s": 121.0, "end_s": 122.9},  # frames at x.8 s: the jump moves no frame
+        {"kind": "frame_lost", "start_s": 121.0, "end_s": 122.9},  # frames at x.5 s: the jump moves no frame
         {"kind": "frame_blank", "start_s": 123.0, "end_s": 124.5},
         {"kind": "plume_brightening", "start_s": 125.0, "end_s": 130.0, "magnitude": 3.0}]
     scenario = scenario_from_dict(d)
@@ -228,7 +228,7 @@ def test_frame_faults_and_a_clock_jump_replay_identically(tmp_path: Path) -> Non
     assert any("fault start t=120.10 s: clock_jump" in line for line in out.log)
     lost = sum("frame lost" in line for line in out.log)
     framed = [r for r in out.truth if r.frame_id is not None]
-    assert lost >= 2 and len(framed) == out.frames >= 10
+    assert lost >= 2 and len(framed) == out.frames >= 8
     assert any(123.0 <= r.t_s < 124.5 for r in framed) and any(125.0 <= r.t_s < 130.0 for r in framed)
     result = replay(run / "in-process.rec")
     assert result.identical and result.rendered_frames == out.frames

@@ -124,16 +124,19 @@ def test_illegal_mode_command_is_refused_with_a_completion_failure_and_an_event(
 def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
     """A SetMode(ACQUISITION) scheduled at OBT0+1.55 s executes at the first period at or after its tag (not
     before), reports its completion and the mode change stamped with the OBT the schedule task ran at in that
-    period, and starts imaging."""
+    period, and starts imaging in the next period (the first reference of ACQUISITION, here the attitude held, shows
+    no slew to wait for)."""
     fsw = _fsw()
     tag = OBT0 + 1.55
     inner = pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 11)
     insert = pus.InsertActivities(activities=(pus.ScheduledActivity(release_obt_s=tag, tc_packet=inner),))
     fsw.step(_request(0, OBT0, (pus.encode_tc(insert, APID, 10),)), None)
-    released_at = None
+    released_at = first_frame = None
     for k in range(1, 30):
         obt = OBT0 + k * DT
         reply = fsw.step(_request(k, obt), None)
+        if reply.frame_request is not None and first_frame is None:
+            first_frame = obt
         tm = _tm(reply.downlink)
         changes = [(h, r) for h, r in tm if isinstance(r, pus.ModeChangedEvent)]
         if obt < tag - 1e-9:
@@ -150,8 +153,9 @@ def test_scheduled_command_is_released_at_its_tag_with_a_mode_event() -> None:
             done = _of(tm, pus.Verification)
             assert [(v.stage, v.success, v.request_id.seq_count) for v in done] == [
                 (stage, True, 11) for stage in (pus.Stage.ACCEPTANCE, pus.Stage.START, pus.Stage.COMPLETION)]
-            assert reply.frame_request is not None
+            assert reply.frame_request is None
     assert released_at is not None and tag <= released_at < tag + DT
+    assert first_frame == pytest.approx(released_at + DT)
     assert fsw.mode_name == "ACQUISITION"
 
 
@@ -369,8 +373,11 @@ FRAME_LATENCY_S = 0.005 + 1024 * 1024 * 12 / 80e6 + 512 * 512 * 60e-9
 
 
 def _imaging_fsw(cfg: ObswConfig | None = None) -> tuple[FlightSoftware, object]:
-    """A flight software with the nominal trajectory, in ACQUISITION, imaging every 0.2 s: its first reply."""
-    fsw = FlightSoftware(cfg or ObswConfig(), KEYS)
+    """A flight software with the nominal trajectory, in ACQUISITION, imaging every 0.2 s: its first reply. The
+    callers hold the attitude themselves, so ACQUISITION waits for no slew (``acquisition_settle_deg`` 180)."""
+    cfg = cfg or ObswConfig()
+    cfg = cfg.model_copy(update={"modes": cfg.modes.model_copy(update={"acquisition_settle_deg": 180.0})})
+    fsw = FlightSoftware(cfg, KEYS)
     tcs = (pus.encode_tc(TRAJECTORY, APID, 1), pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 2),
            pus.encode_tc(pus.StartImaging(period_s=0.2), APID, 3))
     return fsw, fsw.step(_request(0, OBT0, tcs), None)
@@ -516,3 +523,69 @@ def test_a_schedule_reset_deletes_every_activity_and_disables_the_release() -> N
         if k == 1:
             assert len(fsw.schedule) == 0 and not fsw.schedule.enabled
     assert pings == [80]  # 0x2202's tag (step 60) passed while disabled: released at once when enabled
+
+
+# C/A ten minutes on: the line of sight turns by about 0.02 deg a second, slowly enough to hold an offset against it
+FAR_TRAJECTORY = TRAJECTORY.model_copy(update={"ca_obt_s": OBT0 + 600.0})
+
+
+def _frames_while_off(offsets_deg: list[float], cfg: ObswConfig | None = None) -> list[int]:
+    """Periods (from 1) with a frame request after entering ACQUISITION from STANDBY, imaging commanded at once, the
+    star tracker reading the boresight (body Z) ``offsets_deg[k]`` off the trajectory's line of sight, where
+    ACQUISITION points it; before the entry, ten periods on the line of sight settle the attitude estimate."""
+    u = FAR_TRAJECTORY
+    traj = NominalTrajectory(ca_time_obt_s=u.ca_obt_s, ca_distance_km=u.ca_distance_km, speed_km_s=u.speed_km_s,
+                             approach_direction=u.approach_direction, ca_direction=u.ca_direction)
+
+    def aim(t: float, off_deg: float) -> tuple[float, ...]:
+        z = traj.los_inertial(t)
+        x = np.cross([0.0, 0.0, 1.0], z)
+        x /= np.linalg.norm(x)
+        q = Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z])) * Rotation.from_rotvec(
+            [np.radians(off_deg), 0.0, 0.0])
+        return tuple(float(v) for v in q.as_quat())
+
+    fsw = FlightSoftware(cfg or ObswConfig(), KEYS)
+    fsw.step(_request(0, OBT0, (pus.encode_tc(u, APID, 1),), q=aim(OBT0, offsets_deg[0])), None)
+    for k in range(1, 11):
+        fsw.step(_request(k, OBT0 + k * DT, q=aim(OBT0 + k * DT, offsets_deg[0])), None)
+    t0 = OBT0 + 11 * DT
+    tcs = (pus.encode_tc(pus.SetMode(mode=pus.Mode.ACQUISITION), APID, 2),
+           pus.encode_tc(pus.StartImaging(period_s=0.2), APID, 3))
+    reply = fsw.step(_request(11, t0, tcs, q=aim(t0, offsets_deg[0])), None)
+    assert fsw.mode_name == "ACQUISITION"
+    assert reply.frame_request is None  # the entry's period: no reference of ACQUISITION yet
+    out = []
+    speeds = np.zeros(3)  # the wheels follow their torques, so wheel health finds none failed
+    for k, off in enumerate(offsets_deg, start=1):
+        speeds = speeds + np.asarray(reply.wheel_torque_nm) * DT / fsw.wheel_inertia_kgm2
+        rate = np.radians(off - offsets_deg[k - 2]) / DT if k > 1 else 0.0  # the slew about body X, gyro-measured
+        reply = fsw.step(_request(11 + k, t0 + k * DT, q=aim(t0 + k * DT, off), gyro=(float(rate), 0.0, 0.0),
+                                  wheels=tuple(float(w) for w in speeds)), None)
+        assert fsw.mode_name == "ACQUISITION"
+        if reply.frame_request is not None:
+            out.append(k)
+    return out
+
+
+def test_acquisition_from_standby_exposes_its_first_frame_once_the_slew_onto_the_target_is_done() -> None:
+    """Entering ACQUISITION from STANDBY, no frame is exposed while the boresight is more than
+    modes.acquisition_settle_deg off the reference; the first one in the period the attitude comes within."""
+    settle = ObswConfig().modes.acquisition_settle_deg
+    slew = list(np.linspace(3.0 * settle, 0.5 * settle, 12))  # 0.68 deg/s, gyro-measured; no sample at the limit
+    frames = _frames_while_off([3.0 * settle] * 15 + slew + [0.5 * settle] * 10)
+    inside = 15 + next(i for i, v in enumerate(slew) if v <= settle) + 1  # the first period within
+    # the attitude estimate follows within a few periods
+    assert frames and inside <= frames[0] <= inside + 3
+    assert _frames_while_off([0.5 * settle] * 5)[0] == 1
+
+
+def test_acquisition_that_never_settles_images_from_the_timeout() -> None:
+    """A slew that never settles (held 3 x acquisition_settle_deg off) delays the first frame by
+    modes.acquisition_settle_timeout_s of on-board time, not for ever (5 s here: held off longer, the wheels
+    saturate against the attitude the test holds)."""
+    base = ObswConfig()
+    cfg = base.model_copy(update={"modes": base.modes.model_copy(update={"acquisition_settle_timeout_s": 5.0})})
+    n = round(cfg.modes.acquisition_settle_timeout_s / DT)
+    frames = _frames_while_off([3.0 * cfg.modes.acquisition_settle_deg] * (n + 10), cfg)
+    assert frames and n <= frames[0] <= n + 1  # the entry is stamped within its period
