@@ -4,8 +4,8 @@ summary lines, figures.json, the report's requirement table and the closed-loop 
 The requirements (thresholds in ``ground.config.ReportConfig``, each with its source): Dimorphos in the field of
 view in enough camera frames, and the pointing error never above half the field of view, from the first camera
 frame of the first ACQUISITION (``window_start_obt_s``; the paper: the target kept in the field of view during the
-scientific activities, the imaging) to C/A + ``in_view_after_ca_s``; the peak body rate reached; every detected Dimorphos centroid near
-its true projection. The on-board C/A estimates standing at C/A - ``estimate_before_ca_s`` are scored against
+scientific activities, the imaging) to C/A + ``in_view_after_ca_s``; the peak body rate reached; every detected
+Dimorphos centroid near its true projection. The on-board C/A estimates standing at C/A - ``estimate_before_ca_s`` are scored against
 the true C/A to Dimorphos (``analysis.closest_approach``), the body the camera measures.
 """
 

@@ -21,8 +21,8 @@ class ReportConfig(Config):
         gt=0,
         le=1,
         description="fraction of camera frames with Dimorphos in the field of view required from the first "
-        "frame of the first ACQUISITION to C/A + in_view_after_ca_s, fraction (paper: 98% nominal; worst-case scenarios set 0.90, "
-        "paper: more than 90%)",
+        "frame of the first ACQUISITION to C/A + in_view_after_ca_s, fraction (paper: 98% nominal; worst-case "
+        "scenarios set 0.90, paper: more than 90%)",
     )
     in_view_after_ca_s: float = Field(
         60.0, ge=0, description="the in-view and pointing windows end this long after the true C/A, s (the "

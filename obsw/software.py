@@ -928,10 +928,10 @@ class FlightSoftware:
 
     def _settled(self) -> bool:
         """The estimated boresight within ``modes.acquisition_settle_deg`` of the reference computed in
-        ACQUISITION after its entry (``_settle_since_obt``)."""
+        ACQUISITION after its entry (``_settle_since_obt``, cleared by any other mode change)."""
         ref = self.last_reference
         if ref is None or self._reference_obt is None or self._settle_since_obt is None \
-                or self.modes.mode != Mode.ACQUISITION or self._reference_obt <= self._settle_since_obt:
+                or self._reference_obt <= self._settle_since_obt:
             return False
         aim = Rotation.from_quat(ref.q_des).apply(self.camera.boresight_body)
         return boresight_error_rad(self._q, self.camera.boresight_body, aim) \

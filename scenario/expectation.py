@@ -49,7 +49,8 @@ class Expectation(Config):
     """The ``expect:`` block: what the run must show for the scenario to pass."""
 
     in_view_min: float | None = Field(None, ge=0, le=1, description="least fraction of camera frames with Dimorphos "
-                                      "in the field of view, first frame of ACQUISITION to C/A + the report's window (score_run)")
+                                      "in the field of view, first frame of ACQUISITION to C/A + the report's "
+                                      "window (score_run)")
     pointing_error_max_deg: float | None = Field(None, gt=0, description="largest true pointing error in that "
                                                  "window, deg")
     paper_requirements: bool = Field(False, description="every requirement of the paper holds (in view, pointing, "
