@@ -56,6 +56,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from obsw import imaging_kernels as kernels
 from obsw.config import ImagingConfig
 from obsw.imaging_geometry import LIT_CENTROID_FACTOR, FramePrediction, phase_offset_px
 from obsw.imaging_labelling import Components, connected_components
@@ -96,7 +97,10 @@ class Regions:
     width: int
     threshold_dn8: int
     part_pixels: dict[int, np.ndarray] = field(default_factory=dict)  # label of a part -> its foreground positions
-    histograms: dict[str, np.ndarray] = field(default_factory=dict)  # "regions": each region's 8-bit histogram
+    # "regions": the 8-bit histograms of the regions described (``blobs``)
+    histograms: dict[str, np.ndarray] = field(default_factory=dict)
+    rows: list[int] = field(default_factory=list)  # each region's row in histograms["regions"] (-1: not described)
+    light: dict[int, list[float]] = field(default_factory=dict)  # n -> aperture_dn8 of n px of each row
     linear8: np.ndarray | None = None  # the raw value each 8-bit code stands for (``light_spread_px2``)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
@@ -108,17 +112,20 @@ class Regions:
         k = c.area_px.size
         if k == 0:
             return []
-        comp = c.pixel_component
-        mean = np.bincount(comp, weights=self.values8, minlength=k) / c.area_px
-        # each component's brightest value: the last non-empty bin of its 256-bin histogram
-        counts = np.bincount(comp * 256 + self.values8, minlength=k * 256).reshape(k, 256)
-        peak = 255 - np.argmax(counts[:, ::-1] > 0, axis=1)
+        keep = np.flatnonzero(c.area_px >= min_area_px)
+        row = np.full(k, -1, dtype=np.int64)
+        if first_label == 1:  # the histograms of the regions described (``aperture_dn8``)
+            row[keep] = np.arange(keep.size)
+        sums, peak, counts = kernels.region_values(c.pixel_component, self.values8, k, row,
+                                                   keep.size if first_label == 1 else 0)
+        mean = sums / c.area_px
         if first_label == 1:
             self.histograms["regions"] = counts
+            self.rows[:] = row.tolist()
+            self.light.clear()
         dx, dy = offset_col_row
         last = (image_size if image_size is not None else self.width) - 1
         out = []
-        keep = np.flatnonzero(c.area_px >= min_area_px)
         for i, area, cc, cr, x, y, w, h, m, p, e in zip(
                 keep.tolist(), c.area_px[keep].tolist(), c.centroid_col[keep].tolist(), c.centroid_row[keep].tolist(),
                 c.left[keep].tolist(), c.top[keep].tolist(), c.width[keep].tolist(), c.height[keep].tolist(),
@@ -226,10 +233,7 @@ def surface_pixels(regions: Regions, blob: Blob, n_pixels: int) -> int:
     median of its brightest ``n_pixels``: a lit surface is mostly that bright (its terminator and blurred limb are a
     thin fringe), a fan of dust around it fainter."""
     vals = regions.values8[regions.pixels_of(blob)]
-    n = min(max(1, int(n_pixels)), vals.size)
-    thr = regions.threshold_dn8
-    typical = float(np.median(np.partition(vals, vals.size - n)[vals.size - n:]))
-    return int(np.count_nonzero(vals >= thr + 0.5 * (typical - thr)))
+    return int(kernels.surface_count(vals, min(max(1, int(n_pixels)), vals.size), regions.threshold_dn8))
 
 
 def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None) -> Blob:
@@ -428,9 +432,12 @@ def _with_companion(likely: list[Blob], cands: list[Blob], predicted: tuple[floa
     dx = (at[None, :, 0] - origin[:, None, 0]) - predicted[0]
     dy = (at[None, :, 1] - origin[:, None, 1]) - predicted[1]
     near = dx * dx + dy * dy <= (jump[:, None] * (1.0 + 1e-9) + 1e-9) ** 2  # never tighter than the rule
-    return [c for i, c in enumerate(likely) if any(
-        cands[j] is not c and _distance(_relative(cands[j], c), predicted) <= jump[i]
-        for j in np.flatnonzero(near[i]))]
+    found: set[int] = set()
+    for i, j in zip(*(x.tolist() for x in np.nonzero(near)), strict=True):
+        c = likely[i]
+        if i not in found and cands[j] is not c and _distance(_relative(cands[j], c), predicted) <= jump[i]:
+            found.add(i)
+    return [c for i, c in enumerate(likely) if i in found]
 
 
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
@@ -491,28 +498,20 @@ def _near(blob: Blob, point: tuple[float, float], limit: float, oversized: bool)
     return (_box_distance(blob, point) if oversized else _distance(blob.region_centroid_col_row, point)) <= limit
 
 
-def _top_light(counts: np.ndarray, n: int, threshold_dn8: int) -> np.ndarray:
-    """Sum above ``threshold_dn8`` of the n brightest values of each row of 256-bin histograms (K, 256), over n."""
-    down = counts[:, ::-1]  # from the brightest value down
-    values = np.arange(255, -1, -1, dtype=np.int64) - threshold_dn8
-    taken = np.minimum(down, np.maximum(n - (np.cumsum(down, axis=1) - down), 0))  # the top n, bin by bin
-    return (taken * values).sum(axis=1) / n
-
-
 def aperture_dn8(regions: Regions, blob: Blob, n_pixels: int) -> float:
     """The light a body of ``n_pixels`` would hold: the mean, over ``n_pixels``, of a blob's brightest pixels above
     the frame's threshold (a blob with fewer pixels counts the rest as dark), 8-bit DN. A single pixel cannot set it,
     a small star holds little of it, a faint clump of ejecta less than a lit surface."""
     n = max(1, int(n_pixels))
-    table = regions.histograms.get("regions")
-    if table is None or blob.trimmed_from:
+    rows = regions.rows
+    row = rows[blob.label - 1] if not blob.trimmed_from and 0 < blob.label <= len(rows) else -1
+    if row < 0:
         counts = np.bincount(regions.values8[regions.pixels_of(blob)], minlength=256)[None, :]
-        return float(_top_light(counts, n, regions.threshold_dn8)[0])
-    key = f"aperture {n}"
-    light = regions.histograms.get(key)
-    if light is None:  # every region's at once: many candidates share each expected area
-        light = regions.histograms[key] = _top_light(table, n, regions.threshold_dn8)
-    return float(light[blob.label - 1])
+        return float(kernels.top_light(counts, n, regions.threshold_dn8)[0])
+    light = regions.light.get(n)
+    if light is None:  # every described region's at once: many candidates share each expected area
+        light = regions.light[n] = kernels.top_light(regions.histograms["regions"], n, regions.threshold_dn8).tolist()
+    return light[row]
 
 
 def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, place: _Place | None,

@@ -1,6 +1,8 @@
-"""Compiled kernels of the imaging chain's FPGA stages (Numba): one pass over the frame for the binning block sums,
-maxima and the histogram of the binned image, one over the blocks for those the outlier filter examines, and the
-outlier test of their pixels.
+"""Compiled kernels of the imaging chain (Numba): for the FPGA stages, one pass over the frame for the binning block
+sums, maxima and the histogram of the binned image, one over the blocks for those the outlier filter examines, and the
+outlier test of their pixels; for the software's labelling, the runs of a binary image joined into 8-connected
+components with their raw moments (``obsw.imaging_labelling`` turns them into the statistics), and each region's
+brightness: the sum, peak and histogram of its pixels' 8-bit values (``obsw.imaging_identification``).
 
 They do what the FPGA does pixel by pixel, as the universe's readout kernel (``universe.camera.readout``) does for the
 detector; ``obsw.imaging_filtering`` defines the arithmetic and is checked against OpenCV.
@@ -154,6 +156,183 @@ def outliers(frame: np.ndarray, blocks: np.ndarray, f: int, k_sigma: float, rati
     return np.sort(found[:n_found]), delta[:n_changed], changed[:n_changed]
 
 
+@njit(cache=True, nogil=True)
+def label_runs(mask: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The 8-connected components of a 2-D boolean image, by runs (maximal horizontal segments of foreground).
+
+    Returns, components numbered in raster order of their first pixel: the flat index of every foreground pixel in
+    raster order and its component; per component its area and raw moments (sums over its pixels, each run added in
+    raster order: column, row, column^2, row^2, row x column, as the run formulas give them), its first row, leftmost
+    and rightmost column and last row. A run joins the runs of the row above that touch it (8-connectivity: columns
+    within one), each set's root being its first run, so numbering roots in order numbers components."""
+    height, width = mask.shape
+    cap = height * ((width + 1) // 2) + 1
+    run_row = np.empty(cap, np.int64)
+    run_c0 = np.empty(cap, np.int64)
+    run_c1 = np.empty(cap, np.int64)
+    parent = np.empty(cap, np.int64)
+    n = 0
+    above_first = 0  # runs of the previous row: [above_first, above_end)
+    above_end = 0
+    for r in range(height):
+        row = mask[r]
+        row_first = n
+        c = 0
+        j = above_first
+        while c < width:
+            if not row[c]:
+                c += 1
+                continue
+            c0 = c
+            while c < width and row[c]:
+                c += 1
+            c1 = c - 1
+            run_row[n] = r
+            run_c0[n] = c0
+            run_c1[n] = c1
+            parent[n] = n
+            # the runs above touching [c0 - 1, c1 + 1]; they are sorted and disjoint, so a pointer moves forward
+            while j < above_end and run_c1[j] < c0 - 1:
+                j += 1
+            k = j
+            while k < above_end and run_c0[k] <= c1 + 1:
+                a = k  # union of the sets of runs k and n: the larger root hooks onto the smaller
+                while parent[a] != a:
+                    a = parent[a]
+                b = n
+                while parent[b] != b:
+                    b = parent[b]
+                if a < b:
+                    parent[b] = a
+                elif b < a:
+                    parent[a] = b
+                k += 1
+            n += 1
+        above_first, above_end = row_first, n
+    comp_of_root = np.empty(n, np.int64)
+    run_comp = np.empty(n, np.int64)
+    k_count = 0
+    total = 0
+    for i in range(n):
+        a = i
+        while parent[a] != a:
+            a = parent[a]
+        parent[i] = a  # compress: roots precede their runs, so a root's own entry is final
+        if a == i:
+            comp_of_root[i] = k_count
+            k_count += 1
+        run_comp[i] = comp_of_root[a]
+        total += run_c1[i] - run_c0[i] + 1
+    area = np.zeros(k_count, np.float64)
+    sum_col = np.zeros(k_count, np.float64)
+    sum_row = np.zeros(k_count, np.float64)
+    sum_col2 = np.zeros(k_count, np.float64)
+    sum_row2 = np.zeros(k_count, np.float64)
+    sum_row_col = np.zeros(k_count, np.float64)
+    top = np.empty(k_count, np.int64)
+    left = np.full(k_count, width, np.int64)
+    right = np.zeros(k_count, np.int64)
+    bottom = np.zeros(k_count, np.int64)
+    pixel_index = np.empty(total, np.int64)
+    pixel_component = np.empty(total, np.int64)
+    p = 0
+    for i in range(n):
+        q = run_comp[i]
+        c0 = run_c0[i]
+        c1 = run_c1[i]
+        rr = run_row[i]
+        length = float(c1 - c0 + 1)
+        rowf = float(rr)
+        s_col = (c0 + c1) * length * 0.5
+        x1 = float(c1)
+        x0 = c0 - 1.0
+        area[q] += length
+        sum_col[q] += s_col
+        sum_row[q] += rowf * length
+        sum_col2[q] += x1 * (x1 + 1) * (2 * x1 + 1) / 6.0 - x0 * (x0 + 1) * (2 * x0 + 1) / 6.0
+        sum_row2[q] += rowf * rowf * length
+        sum_row_col[q] += rowf * s_col
+        if parent[i] == i:
+            top[q] = rr
+        left[q] = min(left[q], c0)
+        right[q] = max(right[q], c1)
+        bottom[q] = max(bottom[q], rr)
+        for cc in range(c0, c1 + 1):
+            pixel_index[p] = rr * width + cc
+            pixel_component[p] = q
+            p += 1
+    return (pixel_index, pixel_component, area, sum_col, sum_row, sum_col2, sum_row2, sum_row_col, top, left, right,
+            bottom)
+
+
+@njit(cache=True, nogil=True)
+def region_values(component: np.ndarray, values8: np.ndarray, k: int, row: np.ndarray, n_rows: int
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Of k regions, from each foreground pixel's region (0-based) and 8-bit value: each region's sum of values and
+    its peak value, and the 256-bin histograms of the regions with a ``row`` (>= 0) in a table of ``n_rows``."""
+    sums = np.zeros(k, np.float64)
+    peak = np.zeros(k, np.int64)
+    hist = np.zeros((n_rows, 256), np.int64)
+    for i in range(component.size):
+        q = component[i]
+        v = np.int64(values8[i])
+        sums[q] += v
+        if v > peak[q]:
+            peak[q] = v
+        r = row[q]
+        if r >= 0:
+            hist[r, v] += 1
+    return sums, peak, hist
+
+
+@njit(cache=True, nogil=True)
+def top_light(counts: np.ndarray, n: int, threshold_dn8: int) -> np.ndarray:
+    """Of each row of 256-bin histograms (K, 256): the sum of its n largest values less ``threshold_dn8``, over n
+    (fewer values than n count the rest as 0)."""
+    out = np.empty(counts.shape[0], np.float64)
+    for r in range(counts.shape[0]):
+        left = np.int64(n)
+        total = np.int64(0)
+        for v in range(255, -1, -1):
+            if left <= 0:
+                break
+            take = min(counts[r, v], left)
+            total += take * (v - threshold_dn8)
+            left -= take
+        out[r] = total / n
+    return out
+
+
+@njit(cache=True, nogil=True)
+def surface_count(values8: np.ndarray, n: int, threshold_dn8: int) -> int:
+    """How many of ``values8`` are at least ``threshold_dn8`` + (m - ``threshold_dn8``) / 2, m the median of their n
+    largest (1 <= n <= their number; of an even n, the mean of the middle two)."""
+    hist = np.zeros(256, np.int64)
+    for i in range(values8.size):
+        hist[values8[i]] += 1
+    # the n largest, ascending, are the last n of the sorted values: their middle one(s) at ranks (from the top)
+    # (n - 1) // 2 and n // 2, counted from 0
+    lo_rank = n // 2
+    hi_rank = (n - 1) // 2
+    lo = -1
+    hi = -1
+    seen = 0
+    for v in range(255, -1, -1):
+        seen += hist[v]
+        if hi < 0 and seen > hi_rank:
+            hi = v
+        if seen > lo_rank:
+            lo = v
+            break
+    typical = (hi + lo) / 2.0 if n % 2 == 0 else float(hi)
+    level = threshold_dn8 + 0.5 * (typical - threshold_dn8)
+    count = 0
+    for v in range(256):
+        if v >= level:
+            count += hist[v]
+    return count
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) the kernels now, for the frame types the camera gives."""
     frame = np.zeros((4, 4), np.uint16)
@@ -164,3 +343,8 @@ def warm_up() -> None:
     standing_out(sums, maxima, 4, 1.0, 2.0, 0.0)
     empty = np.zeros(0, np.int64)
     outliers(frame, np.zeros(1, np.int64), 2, 1.0, 2.0, 0, empty, empty)
+    label_runs(np.zeros((2, 2), np.bool_))
+    one = np.zeros(1, np.int64)
+    region_values(one, np.zeros(1, np.uint8), 1, one, 1)
+    top_light(np.zeros((1, 256), np.int64), 1, 0)
+    surface_count(np.zeros(1, np.uint8), 1, 0)
