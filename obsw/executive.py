@@ -60,7 +60,7 @@ class Event:
         return (self.time_s, self.priority, self.sequence)
 
 
-@dataclass
+@dataclass(slots=True)
 class Activation:
     """What a task gets when it runs: the tick, its start (its 'now'), its events; what it emits goes out at its
     finish."""
@@ -89,6 +89,17 @@ class TaskSpec:
     handler: Handler
     subscribes: frozenset[EventKind] = frozenset()
     periodic: bool = True
+
+
+class _Plan(NamedTuple):
+    """A slot of a minor frame as the executive runs it."""
+
+    task: Task
+    spec: TaskSpec
+    offset_s: float  # release, s after the tick
+    deadline_s: float  # deadline, s after the tick
+    critical: bool
+    timers: tuple[tuple[EventKind, Callable[[], float | None]], ...]
 
 
 class Run(NamedTuple):  # a named tuple: eleven are made every minor frame, at a fifth of a frozen dataclass's cost
@@ -149,6 +160,10 @@ class Executive:
         self._subscribers: dict[EventKind, tuple[Task, ...]] = {
             k: tuple(t for t, spec in self.tasks.items() if k in spec.subscribes) for k in EventKind}
         self._timers: list[tuple[EventKind, Callable[[], float | None]]] = []
+        # each minor frame's slots, prepared once (the table is data, fixed for the executive's life): task, spec,
+        # offset and deadline from the tick (s), critical, and the timers the task hears
+        self._plans: list[tuple[_Plan, ...]] = []
+        self._plan()
         self._sequence = 0
         self._carry_s = 0.0  # work of the last minor frame still running at this tick, s after it
         self.frames = 0
@@ -190,23 +205,25 @@ class Executive:
         """A timer: at each release of a task subscribing to ``kind``, if ``due_s()`` has come and no such event is
         queued for it, post one at that time."""
         self._timers.append((kind, due_s))
+        self._plan()
+
+    def _plan(self) -> None:
+        """Prepare each minor frame's slots (``_Plan``), in table order."""
+        self._plans = [tuple(
+            _Plan(s.task, self.tasks[s.task], s.offset_fraction * self.period_s, s.deadline_fraction * self.period_s,
+                  s.critical, tuple((k, due) for k, due in self._timers if k in self.tasks[s.task].subscribes))
+            for s in self.table.released(minor)) for minor in range(self.table.minor_frames)]
 
     def pending(self, task: Task) -> tuple[Event, ...]:
         """The events queued for ``task``, in dispatch order."""
         return tuple(ev for _, ev in sorted(self._queues[task]))
 
-    def _poll_timers(self, task: Task, now_s: float) -> None:
-        spec = self.tasks[task]
-        for kind, due_s in self._timers:
-            if kind not in spec.subscribes:
-                continue
+    def _poll_timers(self, task: Task, timers: tuple[tuple[EventKind, Callable[[], float | None]], ...],
+                     now_s: float) -> None:
+        for kind, due_s in timers:
             due = due_s()
             if due is not None and due <= now_s and all(ev.kind != kind for _, ev in self._queues[task]):
                 self.post(kind, due)
-
-    def _due(self, task: Task, now_s: float) -> bool:
-        q = self._queues[task]
-        return bool(q) and q[0][1].time_s <= now_s
 
     def _take(self, task: Task, now_s: float) -> tuple[Event, ...]:
         q = self._queues[task]
@@ -226,16 +243,18 @@ class Executive:
         minor = self.frames % self.table.minor_frames
         free = tick_s + self._carry_s
         runs = []
-        for slot in self.table.released(minor):
-            task, spec = slot.task, self.tasks[slot.task]
-            release = tick_s + slot.offset_fraction * self.period_s
-            deadline = tick_s + slot.deadline_fraction * self.period_s
+        for task, spec, offset_s, deadline_s, critical, timers in self._plans[minor]:
+            release = tick_s + offset_s
+            deadline = tick_s + deadline_s
             start = max(release, free)
-            self._poll_timers(task, start)
-            if not spec.periodic and not self._due(task, start):
-                runs.append(Run(task, self.frames, minor, release, start, start, deadline, ran=False))
-                continue
-            if start >= deadline and not slot.critical:
+            if timers:
+                self._poll_timers(task, timers, start)
+            if not spec.periodic:
+                q = self._queues[task]
+                if not q or q[0][1].time_s > start:  # nothing due: not run
+                    runs.append(Run(task, self.frames, minor, release, start, start, deadline, ran=False))
+                    continue
+            if start >= deadline and not critical:
                 self.skipped += 1
                 run = Run(task, self.frames, minor, release, start, start, deadline, ran=False, skipped=True)
                 runs.append(run)
