@@ -113,13 +113,17 @@ def outliers(frame: np.ndarray, blocks: np.ndarray, f: int, k_sigma: float, rati
         c0 = (b % n) * f - 1
         for a in range(w):
             r = min(max(r0 + a, 0), side - 1)
+            # the window row's columns never decrease (the border replicated), so one search finds its first bad
+            # pixel and a pointer walks the rest
+            pos = np.searchsorted(bad_pixels, r * side + max(c0, 0)) if nb else 0
             for c in range(w):
                 cc = min(max(c0 + c, 0), side - 1)
                 v = np.int64(frame[r, cc])
                 if nb:
                     idx = r * side + cc
-                    pos = np.searchsorted(bad_pixels, idx)
-                    if bad_pixels[min(pos, nb - 1)] == idx:
+                    while pos < nb and bad_pixels[pos] < idx:
+                        pos += 1
+                    if pos < nb and bad_pixels[pos] == idx:
                         v = bad_values[pos]
                 win[a * w + c] = v
         top = np.int64(0)
