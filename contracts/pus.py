@@ -151,8 +151,9 @@ def encode_tm(
     data = report.app_data()
     if PRIMARY_HEADER_LEN + TM_SECONDARY_HEADER_LEN + len(data) + CRC_LEN > MAX_PACKET_LEN:
         raise BadArgument(type(report).__name__, f"{len(data)} octets of source data do not fit one packet")
-    # framed here rather than by spacepackets' PusTm, which built and packed five objects a packet (its share of a
-    # run's time was 8 %); tests/contracts check the octets against PusTm.unpack and a reader written from the standard
+    # framed here rather than by spacepackets' PusTm, which builds and packs five objects a packet (16 us to encode
+    # and 41 to decode, against 7.5 and 16 here); tests/contracts check the octets with PusTm.unpack and with a reader
+    # written from the standard
     total = PRIMARY_HEADER_LEN + TM_SECONDARY_HEADER_LEN + len(data) + CRC_LEN
     head = _TM_HEADER.pack(0x0800 | apid, 0xC000 | seq, total - PRIMARY_HEADER_LEN - 1,
                            PUS_C << 4 | time_status, report.SERVICE, report.subservice(), msg_counter,
