@@ -202,9 +202,11 @@ def label_runs(mask: np.ndarray) -> tuple[np.ndarray, ...]:
             while k < above_end and run_c0[k] <= c1 + 1:
                 a = k  # union of the sets of runs k and n: the larger root hooks onto the smaller
                 while parent[a] != a:
+                    parent[a] = parent[parent[a]]  # path halving: the walk stays short on any mask
                     a = parent[a]
                 b = n
                 while parent[b] != b:
+                    parent[b] = parent[parent[b]]
                     b = parent[b]
                 if a < b:
                     parent[b] = a
