@@ -76,13 +76,27 @@ def _camera_px(v_camera: np.ndarray, f_px: float, n: int) -> tuple[float, float]
     return (c + f_px * v_camera[0] / v_camera[2], c + f_px * v_camera[1] / v_camera[2])
 
 
+@dataclass(frozen=True, slots=True)
+class LosKnowledge:
+    """The target's line of sight at the exposure as the trajectory estimate predicts it, with the constant offsets
+    of the measured line of sight it solves, and the angle around it the measured line of sight is accepted in (the
+    lock gate's bound on the estimate's covariance, C/A time and distance correlated, and the attitude's knowledge:
+    a Dimorphos found farther would be refused)."""
+
+    los_inertial: tuple[float, float, float]  # unit vector
+    bound_rad: float
+
+
 def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, camera: CameraKnowledge,
-                  cfg: ImagingConfig, trajectory: NominalTrajectory | None = None, obt_s: float | None = None
-                  ) -> FramePrediction:
+                  cfg: ImagingConfig, trajectory: NominalTrajectory | None = None, obt_s: float | None = None,
+                  los: LosKnowledge | None = None) -> FramePrediction:
     """The expectation of a frame exposed at ``obt_s`` with the attitude ``q_body_to_inertial``: the Sun's direction,
     and with a trajectory, the target's range (its corners at +-``cfg.prediction_sigma`` in C/A time and distance
     bound the sizes and the place), the apparent radii, the orbit's largest apparent radius and Dimorphos's
-    predicted position."""
+    predicted position. With ``los`` (the trajectory's own estimate's line of sight), Dimorphos's place is that line
+    of sight and its uncertainty that bound when it is tighter than the corners': far from C/A a later C/A at a
+    larger distance points nearly the same way, so the corners of the time and distance box overstate the spread of
+    the direction (40 px for a bound of 4 px at C/A-150 s of the nominal)."""
     n = cfg.binned_size_px
     to_camera = Rotation.from_quat(q_body_to_inertial).inv()
     sun = np.asarray(targets.sun_direction_inertial, dtype=float)
@@ -104,6 +118,11 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
         for c in corners:
             p = _camera_px(to_camera.apply(c.los_inertial(obt_s)), f, n)
             spread = max(spread, math.inf if p is None else math.dist(p, place))
+    if los is not None and place is not None:
+        seen = _camera_px(to_camera.apply(np.asarray(los.los_inertial, dtype=float)), f, n)
+        tight = los.bound_rad * f
+        if seen is not None and tight < spread:
+            place, spread = seen, tight
     return FramePrediction(
         sun_camera=sun_t,
         didymos_radius_px=f * 0.5 * targets.didymos_diameter_m / rng,

@@ -77,6 +77,20 @@ def predicted_theta(ca_time_obt_s: float, ca_distance_km: float, cov: NDArray[np
             float(np.sqrt(max(float(jac @ cov @ jac), 0.0))))
 
 
+def predicted_los(trajectory: NominalTrajectory, estimate: ContinuousEstimate, obt_s: float
+                  ) -> tuple[NDArray[np.float64], float]:
+    """(unit inertial line of sight as it will be measured at ``obt_s``, its one-sigma rad) of the continuous
+    ``estimate`` on ``trajectory``'s flyby plane: the in-plane angle with its offset (``predicted_theta``) and the
+    out-of-plane offset, their one-sigmas combined."""
+    theta, sigma_in = predicted_theta(estimate.ca_time_obt_s, estimate.ca_distance_km, estimate.cov,
+                                      trajectory.speed_m_s, obt_s, estimate.in_plane_offset_rad)
+    phi = estimate.out_of_plane_offset_rad
+    # measured_theta_rad and out_of_plane_rad inverted: theta from the velocity towards -e_ca, phi along the normal
+    los = math.cos(phi) * (math.cos(theta) * trajectory.e_v - math.sin(theta) * trajectory.e_ca) \
+        + math.sin(phi) * trajectory.plane_normal
+    return los, math.hypot(sigma_in, estimate.out_of_plane_sigma_rad)
+
+
 class TrajectoryRecognizer:
     """Grid and continuous recognition of the C/A time (OBT) and distance. Pure: time and inputs are arguments."""
 

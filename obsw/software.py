@@ -63,12 +63,13 @@ from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
+from obsw.imaging_geometry import LosKnowledge
 from obsw.lock_gate import Estimate, LockGate, Prediction
 from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeManager, TargetDetected, Tick,
                         WheelSaturation)
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.monitoring import ParameterMonitor
-from obsw.recognition import TrajectoryRecognizer
+from obsw.recognition import TrajectoryRecognizer, predicted_los
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
 from obsw.tc_security import TcSecurity
 from obsw.timing import TimingModel, Work
@@ -841,9 +842,10 @@ class FlightSoftware:
             # what the frame should show, from the attitude at the exposure and the best trajectory known on board:
             # the recognised one once trusted, even before it is flown, since the ground's nominal can be seconds
             # off in C/A time and then predicts Dimorphos hundreds of px from where it is
+            recognised = self._recognised_trajectory()
             prediction = predict_frame(self._attitude_at(meta.obt_s), self.cfg.targets, self.camera,
-                                       self.cfg.imaging, self._recognised_trajectory() or self.pointing_trajectory(),
-                                       meta.obt_s)
+                                       self.cfg.imaging, recognised or self.pointing_trajectory(), meta.obt_s,
+                                       self._los_knowledge(recognised, meta.obt_s))
             det = process_frame(frame, self.cfg.imaging, self.detections, self.camera, bad_pixels=self.bad_pixels,
                                 prediction=prediction)
         else:
@@ -881,6 +883,18 @@ class FlightSoftware:
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
         return det
+
+    def _los_knowledge(self, recognised: NominalTrajectory | None, obt: float) -> LosKnowledge | None:
+        """The continuous estimate's line of sight at ``obt``, when the recognised trajectory is that estimate's, with
+        the lock gate's count of its one-sigma (the attitude's knowledge included) around it: the imaging chain looks
+        for Dimorphos where a line of sight would be accepted (the centroid's noise and the body's radius it adds)."""
+        if recognised is None or self.cfg.autonomy_estimate != "continuous":
+            return None
+        assert self.recognizer is not None  # a recognised trajectory comes from it
+        los, sigma = predicted_los(recognised, self.recognizer.continuous_estimate(), obt)
+        return LosKnowledge(los_inertial=(float(los[0]), float(los[1]), float(los[2])),
+                            bound_rad=self.cfg.fdir.false_lock_residual_sigma * math.hypot(sigma,
+                                                                                           self._attitude_sigma_rad))
 
     def _prediction(self, obt: float) -> Prediction | None:
         """What the reference C/A estimate (``obsw.lock_gate.ReferenceEstimates``) predicts of Dimorphos's line of

@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from obsw.config import CameraKnowledge, ImagingConfig, TargetKnowledge
 from obsw.imaging import focal_length_px, predict_frame
-from obsw.imaging_geometry import LIT_CENTROID_FACTOR, phase_offset_px
+from obsw.imaging_geometry import LIT_CENTROID_FACTOR, LosKnowledge, phase_offset_px
 from obsw.trajectory import NominalTrajectory
 
 CFG = ImagingConfig()
@@ -90,6 +90,35 @@ def test_prediction_is_the_pinhole_image_of_the_trajectory(t: float) -> None:
             <= p.dimorphos_uncertainty_px + 1e-9
     sun = np.asarray(targets.sun_direction_inertial) / np.linalg.norm(targets.sun_direction_inertial)
     assert np.asarray(p.sun_camera) == pytest.approx(Rotation.from_quat(q).inv().apply(sun))
+
+
+@pytest.mark.parametrize("t", [800.0, 970.0, 1000.0])
+@pytest.mark.parametrize("bound_deg", [0.001, 0.05, 5.0])
+def test_a_known_line_of_sight_places_dimorphos_when_its_bound_is_tighter(t: float, bound_deg: float) -> None:
+    """Given the estimate's line of sight and its bound, Dimorphos's place is that line of sight's pinhole image and
+    its uncertainty the bound in px (f tan is f times the angle to 1e-6 here), when that is tighter than the 3-sigma
+    corners' spread; otherwise the prediction is the trajectory's alone. Sizes never change."""
+    los = TRAJ.los_inertial(t)
+    q = _attitude_towards(los)
+    across = np.cross(los, [0.0, 0.0, 1.0])
+    seen = Rotation.from_rotvec(math.radians(0.1) * across / np.linalg.norm(across)).apply(los)  # 0.1 deg off
+    plain = predict_frame(q, TargetKnowledge(), CAMERA, CFG, TRAJ, t)
+    p = predict_frame(q, TargetKnowledge(), CAMERA, CFG, TRAJ, t,
+                      LosKnowledge(los_inertial=tuple(seen), bound_rad=math.radians(bound_deg)))
+    f = focal_length_px(CAMERA.fov_deg, CFG.binned_size_px)
+    tight = f * math.radians(bound_deg)
+    assert plain.dimorphos_uncertainty_px is not None
+    if tight < plain.dimorphos_uncertainty_px:
+        v = Rotation.from_quat(q).inv().apply(seen)
+        c = 0.5 * (CFG.binned_size_px - 1)
+        assert p.dimorphos_col_row == pytest.approx((c + f * v[0] / v[2], c + f * v[1] / v[2]))
+        assert math.dist(p.dimorphos_col_row, plain.dimorphos_col_row) == pytest.approx(
+            f * math.tan(math.radians(0.1)), rel=1e-3)
+        assert p.dimorphos_uncertainty_px == pytest.approx(tight)
+    else:
+        assert p == plain
+    assert (p.didymos_radius_px, p.dimorphos_radius_px, p.orbit_radius_max_px) == (
+        plain.didymos_radius_px, plain.dimorphos_radius_px, plain.orbit_radius_max_px)
 
 
 def test_without_a_trajectory_only_the_sun_is_predicted() -> None:

@@ -11,7 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from obsw import recognition_kernels
 from obsw.config import RecognitionConfig
-from obsw.recognition import TrajectoryRecognizer, measured_theta_rad, predicted_theta
+from obsw.recognition import (ContinuousEstimate, TrajectoryRecognizer, measured_theta_rad, out_of_plane_rad,
+                              predicted_los, predicted_theta)
 from obsw.trajectory import NominalTrajectory
 from tests.obsw.recognition_reference import reference_solve
 
@@ -333,6 +334,36 @@ def test_the_predicted_angle_and_its_sigma_follow_the_estimate_and_its_covarianc
         theta, sigma = predicted_theta(t_ca, d_km, est.cov, NOMINAL.speed_m_s, t, e)
         assert theta == pytest.approx(theta_at(0.0, 0.0) + e, abs=1e-12)
         assert sigma == pytest.approx(float(np.sqrt(jac @ est.cov @ jac)), rel=1e-5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(t=st.floats(700.0, 1300.0), dt=st.floats(-30.0, 30.0), dd_km=st.floats(-15.0, 15.0),
+       e_in=st.floats(-2e-3, 2e-3), e_out=st.floats(-2e-3, 2e-3), sig_out=st.floats(0.0, 1e-3),
+       axis=st.tuples(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1)).filter(lambda v: np.linalg.norm(v) > 0.1),
+       turn_deg=st.floats(0.0, 180.0))
+def test_the_predicted_line_of_sight_is_measured_at_the_predicted_angles(t, dt, dd_km, e_in, e_out, sig_out, axis,
+                                                                         turn_deg) -> None:
+    """predicted_los is the unit line of sight whose measured in-plane angle is the estimate's angle plus its in-plane
+    offset and whose angle out of the plane is its out-of-plane offset (the measurement functions inverted); with no
+    offset it is the moved trajectory's own line of sight; its sigma is the in-plane one and the out-of-plane one
+    combined, on any flyby geometry."""
+    turn = Rotation.from_rotvec(np.radians(turn_deg) * np.asarray(axis) / np.linalg.norm(axis))
+    traj = NOMINAL.model_copy(update={
+        "approach_direction": tuple(turn.apply(NOMINAL.approach_direction)),
+        "ca_direction": tuple(turn.apply(NOMINAL.ca_direction))})
+    cov = np.diag([4.0, 1.0, 1e-8])
+    est = ContinuousEstimate(ca_time_obt_s=traj.ca_time_obt_s + dt, ca_distance_km=traj.ca_distance_km + dd_km,
+                             in_plane_offset_rad=e_in, cov=cov, out_of_plane_offset_rad=e_out,
+                             out_of_plane_sigma_rad=sig_out)
+    los, sigma = predicted_los(traj, est, t)
+    assert np.linalg.norm(los) == pytest.approx(1.0, abs=1e-12)
+    moved = traj.with_ca(est.ca_time_obt_s, est.ca_distance_km)
+    assert measured_theta_rad(traj, los) == pytest.approx(float(moved.theta_rad(t)) + e_in, abs=1e-9)
+    assert out_of_plane_rad(traj, los) == pytest.approx(e_out, abs=1e-9)
+    _, sigma_in = predicted_theta(est.ca_time_obt_s, est.ca_distance_km, cov, traj.speed_m_s, t, e_in)
+    assert sigma == pytest.approx(float(np.hypot(sigma_in, sig_out)), rel=1e-12)
+    bare, _ = predicted_los(traj, ContinuousEstimate(est.ca_time_obt_s, est.ca_distance_km, 0.0, cov, 0.0, 0.0), t)
+    assert bare == pytest.approx(moved.los_inertial(t), abs=1e-12)
 
 
 @settings(max_examples=60, deadline=None)
