@@ -142,7 +142,8 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     blob was cut out of a larger region (``trimmed_from``), the prediction gives its place (within
     ``limb_fit_max_search_px`` with the margins) and size, it is resolved
     (``limb_fit_min_radius_px``), lit at a low enough phase (``limb_fit_max_phase_deg``), and the limb found steps
-    clearly (``limb_fit_min_contrast``) within its largest radius of the cut; the blob unchanged otherwise. With it,
+    clearly (``limb_fit_min_contrast``) within its largest radius of the cut or within the prediction's uncertainty
+    and the centroid noise of its place; the blob unchanged otherwise. With it,
     the gradient samples the fit took (0 when not fitted), its cost on the FPGA (``obsw.timing``)."""
     if blob is None or not blob.trimmed_from or not cfg.limb_fit or prediction is None \
             or prediction.dimorphos_col_row is None or prediction.dimorphos_radius_px is None \
@@ -163,8 +164,11 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     fit = limb_centre(image, place, search, r_min, r_max)
     if fit is None:
         return blob, 0
+    # the circle must be the cut's body: within its largest radius of the cut, or where the prediction puts Dimorphos
+    # (a cut that kept the surface beside Dimorphos lies farther than that radius from it)
     if fit.score < cfg.limb_fit_min_contrast * fit.window_median \
-            or math.dist(fit.col_row, blob.region_centroid_col_row) > r_max + cfg.blur_margin_px:
+            or (math.dist(fit.col_row, blob.region_centroid_col_row) > r_max + cfg.blur_margin_px
+                and math.dist(fit.col_row, place) > prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px):
         return blob, fit.samples
     dc, dr = phase_offset_px(prediction.sun_camera, fit.col_row, fit.radius_px, fov_deg, n) \
         if cfg.phase_correction else (0.0, 0.0)

@@ -133,6 +133,26 @@ def test_a_cut_off_its_body_is_moved_to_the_limb_and_one_on_it_is_kept() -> None
         assert moved is not None and math.dist(moved.centroid_col_row, truth) <= 3.0, (k, moved, truth)
 
 
+def test_a_cut_beyond_the_body_is_moved_to_the_limb_found_at_the_predicted_place() -> None:
+    """On the same transit frames, a cut whose centroid lies beyond Dimorphos's largest radius from its centre (it kept
+    the surface beside Dimorphos) is still reported within 3 px of the centre: the circle is taken because it lies
+    where the prediction puts Dimorphos, within its uncertainty and the centroid noise."""
+    cases = _transits()
+    for k, (scene, prediction, frame, det) in enumerate(cases):
+        dim, truth = det.dimorphos, frame.truth[1].centre_512
+        r = frame.truth[1].radius_512_px
+        binned = ((frame.pixels.reshape(512, 2, 512, 2).astype(np.int64).sum(axis=(1, 3)) + 2) >> 2)
+        did = frame.truth[0].centre_512
+        towards = np.subtract(did, truth) / math.dist(did, truth)
+        r_max = prediction.dimorphos_radius_px * prediction.radius_factor_max + CFG.blur_margin_px
+        shift = (r_max + (1.0 + k / len(cases)) * r) * towards
+        wrong = replace(dim, centroid_col_row=tuple(np.add(truth, shift)),
+                        region_centroid_col_row=tuple(np.add(truth, shift)))
+        assert math.dist(wrong.region_centroid_col_row, truth) > r_max + 2.0  # beyond the body, the fit's circle too
+        moved, _ = limb_corrected(wrong, binned, prediction, CFG, 2.9)
+        assert moved is not None and math.dist(moved.centroid_col_row, truth) <= 3.0, (k, moved, truth)
+
+
 def test_without_a_prediction_or_a_cut_nothing_is_fitted() -> None:
     """A blob not cut out of a larger region, or a frame without a predicted place, is left as it is, unfitted."""
     scene, prediction, frame, det = _transits()[0]
