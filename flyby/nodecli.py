@@ -37,7 +37,7 @@ def ground_finisher(scenario: Scenario):  # type: ignore[no-untyped-def]
 
         head = [f"scenario {scenario.name}, seed {scenario.seed}"]
         try:
-            report, figures = build_report(out)
+            report, figures = build_report(out, parallel=True)  # the run is over: its cores are free
         except RunFolderError as exc:
             log.error("no report: %s", exc)
             return head + lines

@@ -8,8 +8,8 @@ here, so a node started alone on another host composes exactly what ``flyby run`
 from __future__ import annotations
 
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
-import cv2
 import numpy as np
 from pydantic import ValidationError
 
@@ -17,18 +17,24 @@ from contracts import pus
 from contracts.sdls import KeyRing
 from contracts.seeding import rng_streams
 from ground.config import FlybyBelief
-from ground.segment import GroundSegment
-from obsw.software import FlightSoftware
 from scenario.model import Scenario
 from timeline.model import Timeline
-from universe.camera import dark_frame, sensor_defects
 from universe.config import CameraConfig
 from universe.geometry import nominal_ca
-from universe.simulator import Universe
+
+if TYPE_CHECKING:
+    from ground.segment import GroundSegment
+    from obsw.software import FlightSoftware
+    from universe.simulator import Universe
+
+# Each core is imported where it is built: a node imports its own core only (the flight software alone takes about
+# a second to import, and the three nodes start at once on the same cores).
 
 
 def flight_software(scenario: Scenario, keys: KeyRing | None) -> FlightSoftware:
     """The on-board software, configured with on-board knowledge only, holding ``keys`` to authenticate TCs."""
+    from obsw.software import FlightSoftware
+
     return FlightSoftware(scenario.obsw, keys)
 
 
@@ -36,6 +42,10 @@ def universe(scenario: Scenario) -> Universe:
     """The universe simulator: the truth of the run, seeded. OpenCV renders on one thread: on these frames its
     threads cost more processor time than they save wall time, and a campaign runs a run per core
     (``bench/speed.py``: the same frames, bit for bit)."""
+    import cv2
+
+    from universe.simulator import Universe
+
     cv2.setNumThreads(1)
     return Universe(scenario.universe, scenario.seed, apid=scenario.obsw.apid,
                     ground_period_s=scenario.ground.step_period_s)
@@ -72,6 +82,8 @@ def ground_bad_pixel_map(scenario: Scenario) -> tuple[pus.LoadBadPixelMap, int]:
 def _calibration(cam: CameraConfig, exposure_s: float, seed: int, k_sigma: float,
                  apid: int) -> tuple[pus.LoadBadPixelMap, int]:
     """``ground_bad_pixel_map`` of the values it depends on."""
+    from universe.camera import dark_frame, sensor_defects
+
     dark = dark_frame(cam, exposure_s, rng_streams(seed)["dark_frame"]).reshape(-1)
     median = float(np.median(dark))
     sigma = 1.4826 * float(np.median(np.abs(dark - median)))
@@ -109,6 +121,8 @@ def _calibration(cam: CameraConfig, exposure_s: float, seed: int, k_sigma: float
 def ground_segment(scenario: Scenario, timeline: Timeline | None = None, keys: KeyRing | None = None) -> GroundSegment:
     """The ground segment with its belief of the flyby, the timeline it uploads, the keys it secures TCs with and
     its calibration of the camera's bad pixels."""
+    from ground.segment import GroundSegment
+
     bad, found = ground_bad_pixel_map(scenario) if scenario.ground.upload_bad_pixel_map else (None, 0)
     return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline, keys,
                          bad_pixel_map=bad, bad_pixels_found=found)

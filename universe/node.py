@@ -23,7 +23,7 @@ from contracts.messages import GroundReply, StepReply
 from contracts.runtime import Attachment
 from contracts.shared_blobs import run_folder
 from universe import attitude_rk4
-from universe.camera import frame_to_png8, warm_up
+from universe.camera import display_png8, warm_up
 from universe.simulator import Universe
 
 log = logging.getLogger("universe")
@@ -72,7 +72,7 @@ class FrameWriter:
             fid, frame = item
             path = self.folder / f"frame_{fid:05d}.png"
             try:
-                img = cv2.resize(frame_to_png8(frame, self.bit_depth), (512, 512), interpolation=cv2.INTER_AREA)
+                img = display_png8(frame, self.bit_depth, 512)
                 if not cv2.imwrite(str(path), img):
                     raise OSError("OpenCV could not write it")
             except (OSError, cv2.error) as exc:

@@ -16,10 +16,9 @@ import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from universe.camera import frame_to_png8
+from universe.camera import display_png8
 from universe.dynamics import AttitudeState
 from universe.geometry import FlybyGeometry
 from universe.scene import render_at
@@ -133,8 +132,4 @@ def display_frame(pixels: np.ndarray, bit_depth: int, size_px: int) -> np.ndarra
     """8-bit display image (asinh stretch of ``frame_to_png8``) resampled to ``size_px`` square (area averaging)."""
     if size_px < 1:
         raise RenderRequestError(f"--size must be at least 1 px, got {size_px}")
-    img = frame_to_png8(pixels, bit_depth)
-    if img.shape != (size_px, size_px):
-        shrink = size_px < img.shape[0]
-        img = cv2.resize(img, (size_px, size_px), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_NEAREST)
-    return img
+    return display_png8(pixels, bit_depth, size_px)

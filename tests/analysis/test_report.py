@@ -162,3 +162,23 @@ def test_flyby_report_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert (run / "report.html").exists() and (run / "figures.json").exists()
     assert main(["report", str(tmp_path / "nowhere")]) == 2
     assert "nowhere: no such run folder" in capsys.readouterr().err
+
+
+def test_the_animation_drawn_in_a_helper_process_gives_the_same_report(full_run, tmp_path: Path,
+                                                                       caplog: pytest.LogCaptureFixture) -> None:
+    """With the animation drawn in a helper process (which did not fail), the page, the GIF and figures.json are the
+    octets of the report drawn in one process."""
+    import shutil
+
+    run, path, _ = full_run
+    twin = tmp_path / "twin"
+    shutil.copytree(run, twin)
+    shutil.rmtree(twin / "report")
+    (twin / "report.html").unlink()
+    with caplog.at_level("WARNING", logger="analysis.report"):
+        twin_path, _ = build_report(twin, parallel=True)
+    assert not [r for r in caplog.records if r.name == "analysis.report"], caplog.text
+    assert (run / "report" / "flyby.gif").is_file()
+    assert twin_path.read_bytes() == path.read_bytes()
+    assert (twin / "report" / "flyby.gif").read_bytes() == (run / "report" / "flyby.gif").read_bytes()
+    assert (twin / "figures.json").read_bytes() == (run / "figures.json").read_bytes()

@@ -43,6 +43,15 @@ def test_telemetry_reached_ground(short_runs: tuple[Path, Path]) -> None:
     assert (run / "summary.json").exists()
 
 
+def test_the_ground_node_draws_the_animation_in_its_helper_process(short_runs: tuple[Path, Path]) -> None:
+    """The ground node's report drew its animation in the helper process it starts, without falling back to drawing
+    it in the node, and wrote it."""
+    for run in short_runs:
+        log = (run / "ground.log").read_text()
+        assert "report: " in log and "helper process" not in log, log[-3000:]
+        assert (run / "report" / "flyby.gif").stat().st_size > 0
+
+
 def test_same_seed_gives_identical_telemetry(short_runs: tuple[Path, Path]) -> None:
     """Two runs of the same scenario and seed write byte-identical telemetry and truth."""
     a, b = short_runs

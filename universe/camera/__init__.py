@@ -33,7 +33,7 @@ sets are cached per boresight bin, the plume is integrated on 64x64 nodes.
 from universe.camera.cosmic_rays import CosmicRays, cosmic_rays, deposit, expected_hits
 from universe.camera.defects import SensorDefects, hot_pixels, sensor_defects
 from universe.camera.detector import NORMAL_QUANTILES, dark_frame, normal_codes
-from universe.camera.display import frame_to_png8
+from universe.camera.display import display_png8, frame_to_png8
 from universe.camera.frame import render_frame, scene_electrons, warm_up
 from universe.camera.pinhole import (
     camera_to_inertial_matrix,
@@ -50,7 +50,7 @@ from universe.camera.stars import sky_stars
 __all__ = [
     "NORMAL_QUANTILES", "Body", "CosmicRays", "RenderError", "Scene", "SensorDefects", "StarCatalogue",
     "camera_to_inertial_matrix", "cosmic_rays", "dark_frame", "deposit", "expected_hits", "focal_length_px",
-    "frame_to_png8", "hot_pixels", "normal_codes", "plume_cross_section_m2", "principal_point_px", "project_inertial",
+    "display_png8", "frame_to_png8", "hot_pixels", "normal_codes", "plume_cross_section_m2", "principal_point_px", "project_inertial",
     "psf_half_size_px", "psf_kernel", "quat_matrix", "render_frame", "scene_electrons", "sensor_defects", "sky_stars",
     "smeared_psf", "warm_up",
 ]

@@ -39,3 +39,26 @@ def test_frame_to_png8_of_digital_numbers_equals_the_float_stretch(seed: int, bi
     y = np.arcsinh(np.clip((x - lo) / (hi - lo), 0.0, None) * 20.0) / math.asinh(20.0)
     expected = np.clip(np.rint(y * 255.0), 0, 255).astype(np.uint8)
     assert np.array_equal(frame_to_png8(frame, bit_depth), expected)
+
+
+@pytest.mark.parametrize("seed, bit_depth, n, size", [(1, 12, 2048, 512), (2, 12, 1024, 512), (3, 16, 512, 256),
+                                                      (4, 10, 300, 100), (5, 12, 512, 512), (6, 12, 500, 128),
+                                                      (7, 12, 128, 512)])
+def test_display_png8_equals_opencv_area_resampling_of_the_stretch(seed: int, bit_depth: int, n: int,
+                                                                   size: int) -> None:
+    """The saved frames' display image is OpenCV's area resampling (nearest pixel to grow) of the 8-bit stretch, octet
+    for octet, for whole and fractional shrink factors alike."""
+    import cv2
+
+    from universe.camera import display_png8
+
+    rng = np.random.default_rng(seed)
+    top = (1 << bit_depth) - 1
+    frame = rng.normal(150, 20, size=(n, n))
+    lit = rng.random((n, n)) < 0.02
+    frame[lit] = rng.uniform(300, top, size=int(lit.sum()))
+    frame = np.clip(np.rint(frame), 0, top).astype(np.uint16)
+    img = frame_to_png8(frame, bit_depth)
+    expected = img if size == n else cv2.resize(
+        img, (size, size), interpolation=cv2.INTER_AREA if size < n else cv2.INTER_NEAREST)
+    assert np.array_equal(display_png8(frame, bit_depth, size), expected)
