@@ -54,6 +54,13 @@ def test_run_957_keeps_dimorphos_beside_didymos_limb_by_its_own_limb() -> None:
     _assert_centroids_within_10_px(_replayed("nominal-run00957"))
 
 
+def test_run_432_finds_dimorphos_by_its_limb_at_63_deg_of_phase() -> None:
+    """Run 432 of the image-level campaign (at C/A+5 s Dimorphos, at 63 deg of phase with its terminator towards
+    Didymos, in front of Didymos's limb; its cut by brightness kept Didymos's brighter surface, 15.35 px off) reports
+    every Dimorphos centroid within 10 px of its true centre: the limb check runs up to 70 deg of phase."""
+    _assert_centroids_within_10_px(_replayed("nominal-run00432"))
+
+
 def test_late_corner_run_73_images_once_the_slew_onto_the_target_is_done() -> None:
     """Run 73 of the worst-late-near campaign (centroid level; STANDBY's attitude 1.56 deg off the target when
     ACQUISITION began, past half the field of view) exposes its first frame after the slew, and keeps the pointing

@@ -68,9 +68,9 @@ def test_no_fit_outside_the_image_or_with_disordered_radii() -> None:
     assert limb_centre(image, (math.nan, 30.0), 5.0, 4.0, 6.0) is None
 
 
-def _transit(rng: np.random.Generator, plume: bool) -> Scene:
-    """Dimorphos (lit as brightly as Didymos) in front of Didymos's limb near C/A, 55-75 km away, at low phase, the
-    plume's fan from Dimorphos lying behind it over Didymos when asked."""
+def _transit(rng: np.random.Generator, plume: bool, phase_deg: tuple[float, float] = (15.0, 40.0)) -> Scene:
+    """Dimorphos (lit as brightly as Didymos) in front of Didymos's limb near C/A, 55-75 km away, at a phase within
+    ``phase_deg``, the plume's fan from Dimorphos lying behind it over Didymos when asked."""
     focal = 1024.0 / (2.0 * math.tan(math.radians(1.45)))
     range_m = float(rng.uniform(55e3, 75e3))
     px_per_m = focal / range_m
@@ -93,16 +93,17 @@ def _transit(rng: np.random.Generator, plume: bool) -> Scene:
     fan = Plume(axis_deg=float(math.degrees(angle) + 180.0 + rng.uniform(-30, 30)), half_angle_deg=50.0,
                 length_px=dim_r * 20.0, brightness_dn=radiance * rng.uniform(0.5, 0.9), exponent=0.7) \
         if plume else None
-    return Scene(bodies=bodies, range_m=range_m, phase_deg=float(rng.uniform(15.0, 40.0)),
+    return Scene(bodies=bodies, range_m=range_m, phase_deg=float(rng.uniform(*phase_deg)),
                  sun_azimuth_deg=float(rng.uniform(0.0, 360.0)), plume=fan)
 
 
-def _transits() -> list[tuple[Scene, FramePrediction, np.ndarray, Detections]]:
+def _transits(phase_deg: tuple[float, float] = (15.0, 40.0), seeds: int = 24, stream: int = 2027
+              ) -> list[tuple[Scene, FramePrediction, np.ndarray, Detections]]:
     """Transit frames of the independent generator in which the chain cuts Dimorphos out of a shared region."""
     out = []
-    for seed in range(24):
-        rng = np.random.default_rng([2027, seed])
-        scene = _transit(rng, plume=True)
+    for seed in range(seeds):
+        rng = np.random.default_rng([stream, seed])
+        scene = _transit(rng, plume=True, phase_deg=phase_deg)
         prediction = prediction_for(scene, rng, place_sigma_px=1.0)
         frame = render(scene, np.random.default_rng(seed))
         det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
@@ -151,6 +152,27 @@ def test_a_cut_beyond_the_body_is_moved_to_the_limb_found_at_the_predicted_place
         assert math.dist(wrong.region_centroid_col_row, truth) > r_max + 2.0  # beyond the body, the fit's circle too
         moved, _ = limb_corrected(wrong, binned, prediction, CFG, 2.9)
         assert moved is not None and math.dist(moved.centroid_col_row, truth) <= 3.0, (k, moved, truth)
+
+
+def test_a_cut_off_its_body_is_moved_to_the_limb_up_to_70_deg_of_phase() -> None:
+    """On transit frames of the independent generator at 60-70 deg of phase (the terminator anywhere, towards Didymos
+    too: run 432 of the Monte Carlo campaigns, 63 deg), a cut one radius off Dimorphos's centre towards Didymos is
+    reported within 4.5 px of the centre (the limb's circle, phase-corrected, within 4.2 px on 40 such frames); the
+    chain's own cuts stay within 5 px."""
+    cases = _transits(phase_deg=(60.0, 70.0), seeds=28, stream=2028)
+    assert len(cases) >= 8
+    for k, (scene, prediction, frame, det) in enumerate(cases):
+        dim, truth = det.dimorphos, frame.truth[1].centre_512
+        r = frame.truth[1].radius_512_px
+        binned = ((frame.pixels.reshape(512, 2, 512, 2).astype(np.int64).sum(axis=(1, 3)) + 2) >> 2)
+        assert math.dist(dim.centroid_col_row, truth) <= 5.0, (k, dim, truth)
+        did = frame.truth[0].centre_512
+        towards = np.subtract(did, truth) / math.dist(did, truth)
+        wrong = replace(dim, centroid_col_row=tuple(np.add(truth, r * towards)),
+                        region_centroid_col_row=tuple(np.add(truth, r * towards)))
+        moved, samples = limb_corrected(wrong, binned, prediction, CFG, 2.9)
+        assert samples > 0 and moved is not None and math.dist(moved.centroid_col_row, truth) <= 4.5, \
+            (k, scene.phase_deg, moved, truth)
 
 
 def test_without_a_prediction_or_a_cut_nothing_is_fitted() -> None:
