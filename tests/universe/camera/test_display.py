@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from universe.camera import frame_to_png8
 
@@ -61,4 +63,27 @@ def test_display_png8_equals_opencv_area_resampling_of_the_stretch(seed: int, bi
     img = frame_to_png8(frame, bit_depth)
     expected = img if size == n else cv2.resize(
         img, (size, size), interpolation=cv2.INTER_AREA if size < n else cv2.INTER_NEAREST)
+    assert np.array_equal(display_png8(frame, bit_depth, size), expected)
+
+
+@settings(max_examples=60, deadline=None)
+@given(size=st.integers(1, 96), factor=st.integers(1, 6), extra=st.integers(0, 3), bit_depth=st.integers(8, 16),
+       seed=st.integers(0, 2**32 - 1), lit=st.floats(0.05, 1.0))
+def test_display_png8_equals_opencv_for_any_size_and_factor(size: int, factor: int, extra: int, bit_depth: int,
+                                                            seed: int, lit: float) -> None:
+    """For any square frame of digital numbers, shrunk by a whole factor or not (``extra`` px more), the display
+    image is OpenCV's area resampling of the 8-bit stretch, octet for octet."""
+    import cv2
+
+    from universe.camera import display_png8
+
+    n = size * factor + extra
+    rng = np.random.default_rng(seed)
+    top = (1 << bit_depth) - 1
+    frame = np.clip(rng.normal(0.05 * top, 0.01 * top + 1, size=(n, n)), 0, top)
+    bright = rng.random((n, n)) < lit
+    frame[bright] = rng.uniform(0, top, size=int(bright.sum()))
+    frame = np.rint(frame).astype(np.uint16)
+    img = frame_to_png8(frame, bit_depth)
+    expected = img if n == size else cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
     assert np.array_equal(display_png8(frame, bit_depth, size), expected)
