@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import logging
 import queue
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -33,6 +33,19 @@ class Received:
     key: str
     msg: Message
     blob: bytes | memoryview  # a memoryview: mapped from shared memory (``contracts.shared_blobs``)
+
+
+@dataclass
+class Pending:
+    """A request published by ``Attachment.ask``, its answer not yet collected."""
+
+    key: str
+    msg: Message
+    blob: bytes
+    reply_kind: type[Message]
+    peer: str
+    step: int
+    shared: bytes | None  # the reference of its blob in shared memory, until answered
 
 
 DEPARTURE_GRACE_S = 1.0  # longest wait for the Shutdown of a run that ended normally, after a peer left
@@ -161,31 +174,58 @@ class Attachment:
         """Next message, or None after ``timeout_s``; raise NodeFailure if a peer died or failed."""
         return self._take(timeout_s)
 
-    def exchange(self, key: str, msg: Message, blob: bytes, reply_kind: type[Message], peer: str,
-                 timeout_s: float, resend_s: float = 0.5) -> Received:
-        """Publish ``msg`` and wait for the ``reply_kind`` answer to the same ``step``, resending until it comes.
-
-        A reply to another step (a late duplicate) is dropped; no answer within ``timeout_s`` is the peer's failure.
-        A large blob goes through shared memory when this node shares blobs, and is removed once answered.
-        """
-        step = getattr(msg, "step")
-        deadline = self.clock.now() + timeout_s
+    def ask(self, key: str, msg: Message, blob: bytes, reply_kind: type[Message], peer: str) -> Pending:
+        """Publish ``msg`` (a message with a ``step``) and return what ``collect`` needs to wait for its answer; a large
+        blob goes through shared memory when this node shares blobs, until the answer comes."""
         shared = self._sharer.share(blob) if self._sharer is not None and len(blob) >= MIN_SHARED_OCTETS else None
+        pending = Pending(key, msg, blob, reply_kind, peer, getattr(msg, "step"), shared)
         try:
             self.publish(key, msg, blob, shared)
-            while True:
+        except BaseException:
+            self._release([pending])
+            raise
+        return pending
+
+    def collect(self, pending: Sequence[Pending], timeout_s: float, resend_s: float = 0.5) -> list[Received]:
+        """Wait for the answer to each of ``pending`` (its ``reply_kind`` for the same ``step``), in any order, and
+        return them in the order of ``pending``; resend those still unanswered after ``resend_s`` of silence.
+
+        A reply to another step (a late duplicate) is dropped; an answer missing after ``timeout_s`` is its peer's
+        failure. Blobs in shared memory are removed once answered, or on failure.
+        """
+        answers: list[Received | None] = [None] * len(pending)
+        deadline = self.clock.now() + timeout_s
+        try:
+            while None in answers:
                 left = deadline - self.clock.now()
                 if left <= 0:
-                    raise NodeFailure(peer, self.sim_time_s,
-                                      f"stopped answering (no reply to step {step} within {timeout_s:g} s)")
+                    late = pending[answers.index(None)]
+                    raise NodeFailure(late.peer, self.sim_time_s,
+                                      f"stopped answering (no reply to step {late.step} within {timeout_s:g} s)")
                 got = self._take(min(resend_s, left))
                 if got is None:
-                    self.publish(key, msg, blob, shared)
-                elif isinstance(got.msg, reply_kind) and getattr(got.msg, "step") == step:
-                    return got
+                    for p, answer in zip(pending, answers):
+                        if answer is None:
+                            self.publish(p.key, p.msg, p.blob, p.shared)
+                    continue
+                for i, p in enumerate(pending):
+                    if answers[i] is None and isinstance(got.msg, p.reply_kind) and getattr(got.msg, "step") == p.step:
+                        answers[i] = got
+                        break
         finally:
-            if shared is not None:
-                self._sharer.release(shared)  # type: ignore[union-attr]
+            self._release(pending)
+        return answers  # type: ignore[return-value]
+
+    def exchange(self, key: str, msg: Message, blob: bytes, reply_kind: type[Message], peer: str,
+                 timeout_s: float, resend_s: float = 0.5) -> Received:
+        """Publish ``msg`` and wait for the ``reply_kind`` answer to the same ``step`` (``ask``, then ``collect``)."""
+        return self.collect([self.ask(key, msg, blob, reply_kind, peer)], timeout_s, resend_s)[0]
+
+    def _release(self, pending: Iterable[Pending]) -> None:
+        for p in pending:
+            if p.shared is not None and self._sharer is not None:
+                self._sharer.release(p.shared)
+                p.shared = None
 
     def wait_until_gone(self, nodes: Iterable[str], timeout_s: float) -> None:
         """Wait (at most ``timeout_s``) until ``nodes`` have withdrawn their tokens, ignoring other traffic."""
