@@ -65,6 +65,12 @@ class WallClock:
             time.sleep(dt)
 
 
+def monotonic_ns() -> int:
+    """The host's monotonic clock, ns: the same clock in every process of the host (Linux's CLOCK_MONOTONIC), so
+    time marks of different nodes compare (``contracts.hoptrace``)."""
+    return time.perf_counter_ns()
+
+
 def utc_now() -> datetime.datetime:
     """The machine's UTC now (for certificate validity)."""
     return datetime.datetime.now(datetime.timezone.utc)

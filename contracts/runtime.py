@@ -20,7 +20,9 @@ import zenoh
 
 from contracts.bus import Keys
 from contracts.clock import Clock
+from contracts.clock import monotonic_ns
 from contracts.errors import DecodeError, NodeFailure
+from contracts.hoptrace import ARRIVED, DECODED, PUBLISH, PUBLISHED, TAKEN, HopTrace, message_mark
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_OK, EXIT_PEER
 from contracts.messages import Message, Shutdown, Status, decode, encode
 from contracts.shared_blobs import MIN_SHARED_OCTETS, BlobSharer, SharedBlobError, is_reference, open_blob
@@ -74,9 +76,10 @@ class Attachment:
     """A node on the bus: publish, subscribe, watch peers, wait for messages with a timeout."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, node: str, clock: Clock, log: logging.Logger,
-                 share_blobs: bool = False) -> None:
+                 share_blobs: bool = False, trace: HopTrace | None = None) -> None:
         """``share_blobs``: hand large blobs to peers through shared memory (``contracts.shared_blobs``; the peers
-        must be on this host); blobs shared by peers are taken either way."""
+        must be on this host); blobs shared by peers are taken either way. ``trace``: marks the time of each
+        step-numbered message sent and received (``contracts.hoptrace``), written when the node closes."""
         self.session = session
         self.keys = keys
         self.node = node
@@ -90,6 +93,7 @@ class Attachment:
         self._publishers: dict[str, zenoh.Publisher] = {}
         self._token: Any = None
         self._sharer = BlobSharer(keys.run_id) if share_blobs else None
+        self.trace = trace
         self._watch(keys.shutdown, Shutdown)
 
     # -- receiving -----------------------------------------------------------------------------------------
@@ -98,7 +102,11 @@ class Attachment:
         self._watch(key, kind)
 
     def _watch(self, key: str, kind: type[Message]) -> None:
+        trace = self.trace
+        arrived, decoded = message_mark(ARRIVED, key), message_mark(DECODED, key)
+
         def on_sample(sample: zenoh.Sample) -> None:
+            t_arrived = monotonic_ns() if trace is not None else 0
             data = sample.payload.to_bytes()
             attachment = sample.attachment
             try:
@@ -111,6 +119,9 @@ class Attachment:
                 self.decode_errors += 1
                 self.log.warning("undecodable message on %s (%d so far): %s", key, self.decode_errors, exc)
                 return
+            if trace is not None and (step := getattr(msg, "step", None)) is not None:
+                trace.mark_at(t_arrived, arrived, step)
+                trace.mark(decoded, step)
             self._inbox.put(("msg", Received(str(sample.key_expr), msg, blob)))
 
         self._keep.append(self.session.declare_subscriber(key, on_sample))
@@ -141,10 +152,15 @@ class Attachment:
                 key, express=True, congestion_control=zenoh.CongestionControl.BLOCK
             )
             self._publishers[key] = pub
+        step = getattr(msg, "step", None) if self.trace is not None else None
+        if step is not None:
+            self.trace.mark(message_mark(PUBLISH, key), step)  # type: ignore[union-attr]
         if shared is None:
             pub.put(encode(msg, blob))
         else:
             pub.put(encode(msg), attachment=shared)
+        if step is not None:
+            self.trace.mark(message_mark(PUBLISHED, key), step)  # type: ignore[union-attr]
 
     def status(self, sim_time_s: float, real_time_factor: float | None = None, mode: str | None = None,
                text: str = "") -> None:
@@ -266,6 +282,8 @@ class Attachment:
                     if msg.failed:
                         raise RelayedFailure(msg)
                     raise PeerStopped(msg)
+                if self.trace is not None and (step := getattr(msg, "step", None)) is not None:
+                    self.trace.mark(message_mark(TAKEN, item.key), step)
                 return item
 
     def _fail_unless_stopped(self, node: str) -> None:
@@ -318,12 +336,23 @@ class Attachment:
             return EXIT_INTERNAL, False
         return EXIT_OK, True
 
+    def mark(self, what: str, step: int) -> None:
+        """Mark ``what`` (``contracts.hoptrace.WORK_START``, ...) for ``step`` in the trace, if there is one."""
+        if self.trace is not None:
+            self.trace.mark(what, step)
+
     def close(self) -> None:
         """Withdraw the liveliness token first, so peers see a clean departure before the session closes; remove the
-        blobs still in shared memory."""
+        blobs still in shared memory; write the trace."""
         if self._token is not None:
             self._token.undeclare()
             self._token = None
         if self._sharer is not None:
             self._sharer.close()
             self._sharer = None
+        if self.trace is not None:
+            try:
+                self.trace.write()
+            except OSError as exc:
+                self.log.error("hop trace: %s: %s", self.trace.path, exc)
+            self.trace = None

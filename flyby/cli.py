@@ -56,7 +56,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"flyby run: --keys: {exc}", file=sys.stderr)
             return EXIT_CONFIG
     return launch(args.scenario, scenario, out=args.out, realtime=args.realtime, log_level=args.log_level,
-                  insecure=args.insecure, tc_keys=args.keys, record_frames=args.record_frames)
+                  insecure=args.insecure, tc_keys=args.keys, record_frames=args.record_frames, trace=args.trace)
 
 
 def cmd_credentials(args: argparse.Namespace) -> int:
@@ -164,6 +164,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the step record (obsw_steps.rec) keeps camera frames: by reference (default: a digest, "
                    "the replay renders them again from the scenario and the truth) or raw (the pixels, about 0.55 MB "
                    "a frame; replays with a build whose universe renders differently)")
+    r.add_argument("--trace", action="store_true",
+                   help="each node writes the time marks of its lock-step messages and work to NODE.trace.csv in the "
+                   "run folder (bench/loop_trace.py prints where the loop's time goes)")
     r.set_defaults(func=cmd_run)
     cr = sub.add_parser("credentials", help="write a CA, certificates and TC keys for nodes started by hand")
     cr.add_argument("folder", type=Path, help="a new or empty folder (made private, 0700)")

@@ -95,6 +95,11 @@ def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], r
     }
 
 
+def trace_file(node: str) -> str:
+    """The name of ``node``'s hop trace in a run folder (``flyby run --trace``)."""
+    return f"{node}.trace.csv"
+
+
 def _progress_line(watch: Watch, end_s: float) -> str:
     with watch.lock:
         u = watch.status.get("universe")
@@ -108,20 +113,25 @@ def _progress_line(watch: Watch, end_s: float) -> str:
 
 def launch(config: Path, scenario: Scenario, out: Path | None = None, realtime: bool = False,
            log_level: str = "INFO", stream: IO[str] = sys.stdout, insecure: bool = False,
-           tc_keys: Path | None = None, record_frames: FrameKeeping = "reference") -> int:
+           tc_keys: Path | None = None, record_frames: FrameKeeping = "reference", trace: bool = False) -> int:
     """Run the scenario with the three nodes as local processes; return an exit code (0 = success).
 
     The bus is secured with fresh credentials (and ``tc_keys``, a TC key file, instead of fresh TC keys) unless
-    ``insecure``; ``record_frames``: how the OBSW's step record keeps camera frames (``contracts.steplog``)."""
+    ``insecure``; ``record_frames``: how the OBSW's step record keeps camera frames (``contracts.steplog``);
+    ``trace``: each node writes the time marks of its lock-step to ``NODE.trace.csv`` in the run folder
+    (``contracts.hoptrace``)."""
     if insecure:
         with run_credentials(tc_keys) as credentials:  # the TCs stay authenticated even on a plain bus
-            return _launch(config, scenario, out, realtime, log_level, stream, None, credentials, record_frames)
+            return _launch(config, scenario, out, realtime, log_level, stream, None, credentials, record_frames,
+                           trace)
     with run_credentials(tc_keys) as credentials:
-        return _launch(config, scenario, out, realtime, log_level, stream, credentials, credentials, record_frames)
+        return _launch(config, scenario, out, realtime, log_level, stream, credentials, credentials, record_frames,
+                       trace)
 
 
 def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, log_level: str, stream: IO[str],
-            credentials: Path | None, key_folder: Path, record_frames: FrameKeeping = "reference") -> int:
+            credentials: Path | None, key_folder: Path, record_frames: FrameKeeping = "reference",
+            trace: bool = False) -> int:
     folder = run_folder(scenario, out)
     shutil.copyfile(config, folder / "scenario.yaml")
     run_id = re.sub(r"[^A-Za-z0-9_.-]", "_", f"{folder.name}-{os.getpid()}")
@@ -132,6 +142,9 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
                          shared_memory=shared_memory_available())
     for node in ("obsw", "ground"):
         cmds[node] += ["--tc-keys", str(key_folder / TC_KEY_FILE)]
+    if trace:
+        for node in NODES:
+            cmds[node] += ["--trace", str(folder / trace_file(node))]
     ep = endpoints(ports, credentials is not None)
     print(f"run folder: {folder}", file=stream)
     security = f"--credentials {credentials}" if credentials is not None else "--insecure"

@@ -53,19 +53,19 @@ def _start(node: str, conf, scenario: Scenario, args: argparse.Namespace) -> int
 
         return obsw_main(conf, compose.flight_software(scenario, args.keys), scenario.bus, args.run_id,
                          record=args.out / STEP_RECORD, record_header={"scenario": scenario.model_dump(mode="json")},
-                         record_frames=args.record_frames)
+                         record_frames=args.record_frames, trace=args.trace)
     if node == "universe":
         from universe.node import main as universe_main
 
         return universe_main(conf, lambda: compose.universe(scenario), scenario.bus, args.run_id, args.out,
-                             args.realtime, args.shared_memory)
+                             args.realtime, args.shared_memory, trace=args.trace)
     from ground.node import main as ground_main
 
     # the report reads the scenario from the run folder; keep a copy there when started alone
     if not (args.out / "scenario.yaml").exists():
         shutil.copyfile(args.config, args.out / "scenario.yaml")
     return ground_main(conf, compose.ground_segment(scenario, args.timeline, args.keys), scenario.bus, args.run_id,
-                       args.out, ground_finisher(scenario))
+                       args.out, ground_finisher(scenario), trace=args.trace)
 
 
 INSECURE_WARNING = ("WARNING: plain-TCP bus (--insecure): no TLS, no access control; anyone who reaches the "
@@ -108,6 +108,9 @@ def node_main(node: str, argv: Sequence[str] | None = None) -> int:
                    help="how the OBSW node's step record keeps camera frames: by reference (a digest; the replay "
                    "renders them again) or raw (the pixels, about 0.55 MB a frame)")
     p.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    p.add_argument("--trace", type=Path, default=None, metavar="FILE",
+                   help="write the time marks of this node's lock-step messages and work to FILE when it ends "
+                        "(bench/loop_trace.py reads them: where the loop's time goes)")
     p.add_argument("--credentials", type=Path, default=None, metavar="DIR",
                    help="folder with ca.pem and this node's certificate and key (flyby credentials makes one): the "
                         "bus runs over TLS with mutual authentication and access control; endpoints are tls/...")

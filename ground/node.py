@@ -21,6 +21,7 @@ from collections.abc import Callable
 from contracts.bus import BusConfig, Keys
 from contracts.clock import WallClock, process_usage
 from contracts.errors import NodeFailure
+from contracts.hoptrace import WORK_END, WORK_START, HopTrace
 from contracts import pus
 from contracts.messages import GroundReply, GroundStep, OperatorCommand, OperatorReply, TmLine, TruthRecord
 from contracts.exitcodes import EXIT_OK
@@ -151,7 +152,9 @@ def run(bus: Attachment, segment: GroundSegment, archive: Archive, truth: TruthL
                 bus.publish(bus.keys.ground_reply, last[1])
             continue
         bus.sim_time_s = msg.utc_s
+        bus.mark(WORK_START, msg.step)
         uplink, received, lines = segment.step(msg.utc_s, msg.downlink, msg.downlink_utc_s)
+        bus.mark(WORK_END, msg.step)
         # answer first: the universe goes on with its periods while this step's telemetry and truth are filed
         reply = GroundReply(step=msg.step, uplink=tuple(uplink))
         bus.publish(bus.keys.ground_reply, reply)
@@ -187,13 +190,15 @@ the summary lines to keep (the composition adds the requirement figures and writ
 
 
 def main(conf: zenoh.Config, segment: GroundSegment, bus_cfg: BusConfig, run_id: str, out: Path,
-         finish: Finisher | None = None) -> int:
-    """Run the ground node until the run ends or a peer fails; return the process exit code."""
+         finish: Finisher | None = None, trace: Path | None = None) -> int:
+    """Run the ground node until the run ends or a peer fails; return the process exit code. ``trace``: a file
+    for the time marks of its exchanges with the universe (``contracts.hoptrace``)."""
     keys = Keys(run_id)
     archive = Archive(out / "archive.sqlite", tm_bin=out / "tm.bin")
     truth = TruthLog(out / "truth.csv")
     with zenoh.open(conf) as session:
-        bus = Attachment(session, keys, "ground", WallClock(), log)
+        bus = Attachment(session, keys, "ground", WallClock(), log,
+                         trace=None if trace is None else HopTrace("ground", trace))
         bus.subscribe(keys.ground_step, GroundStep)
         bus.subscribe(keys.operator, OperatorCommand)
         bus.watch_peers()

@@ -16,6 +16,7 @@ import zenoh
 from contracts.bus import BusConfig, Keys
 from contracts.clock import WallClock
 from contracts.errors import NodeFailure
+from contracts.hoptrace import WORK_END, WORK_START, HopTrace
 from contracts.messages import StepReply, StepRequest
 from contracts.runtime import Attachment
 from contracts.steplog import FrameKeeping, StepLogWriter
@@ -69,7 +70,9 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig, record: StepLo
             log.warning("%s; frame dropped", exc)
             frame = None
             req = req.model_copy(update={"frame": None})
+        bus.mark(WORK_START, req.step)
         reply = fsw.step(req, frame)
+        bus.mark(WORK_END, req.step)
         if record is not None:
             record.step(req, got.blob if frame is not None else b"", reply, verdicts=fsw.security.take_verdicts())
         for line in fsw.take_log():
@@ -84,12 +87,14 @@ def run(bus: Attachment, fsw: FlightSoftware, bus_cfg: BusConfig, record: StepLo
 
 
 def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: str, record: Path | None = None,
-         record_header: dict[str, object] | None = None, record_frames: FrameKeeping = "reference") -> int:
+         record_header: dict[str, object] | None = None, record_frames: FrameKeeping = "reference",
+         trace: Path | None = None) -> int:
     """Run the OBSW node until the run ends or a peer fails; return the process exit code.
 
     ``record``: the file to record the software's inputs and outputs into (``contracts.steplog``), written by a
     thread of its own, camera frames kept by reference or raw (``record_frames``); ``record_header`` adds facts of
-    the run to it (the configuration is always there).
+    the run to it (the configuration is always there). ``trace``: a file for the time marks of the lock-step
+    (``contracts.hoptrace``).
     """
     keys = Keys(run_id)
     writer = None
@@ -103,7 +108,8 @@ def main(conf: zenoh.Config, fsw: FlightSoftware, bus_cfg: BusConfig, run_id: st
     kernels.warm_up()
     log.info("attitude filter, imaging, tracking and control kernels ready in %.1f s", wall.now() - t0)
     with zenoh.open(conf) as session:
-        bus = Attachment(session, keys, "obsw", WallClock(), log)
+        bus = Attachment(session, keys, "obsw", WallClock(), log,
+                         trace=None if trace is None else HopTrace("obsw", trace))
         bus.subscribe(keys.step, StepRequest)
         bus.watch_peers()
         bus.declare_alive()

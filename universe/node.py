@@ -19,6 +19,7 @@ import zenoh
 
 from contracts.bus import BusConfig, Keys
 from contracts.clock import Clock, WallClock
+from contracts.hoptrace import WORK_END, WORK_START, HopTrace
 from contracts.messages import GroundReply, StepReply
 from contracts.runtime import Attachment
 from contracts.shared_blobs import run_folder
@@ -103,7 +104,9 @@ def run(bus: Attachment, sim: Universe, bus_cfg: BusConfig, realtime: bool, cloc
             sim.accept_ground(ground[0].msg)  # type: ignore[arg-type]
         for line in sim.take_log():
             log.info("%s", line)
+        bus.mark(WORK_START, request.step)
         nxt = sim.advance(reply.msg)  # type: ignore[arg-type]
+        bus.mark(WORK_END, request.step)
         if frames is not None:
             frames.maybe_write(sim)
         now = clock.now()
@@ -125,16 +128,18 @@ def run(bus: Attachment, sim: Universe, bus_cfg: BusConfig, realtime: bool, cloc
 
 
 def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, run_id: str, out: Path,
-         realtime: bool = False, shared_memory: bool = False) -> int:
+         realtime: bool = False, shared_memory: bool = False, trace: Path | None = None) -> int:
     """Run the universe node until the scenario ends or a peer fails; return the process exit code.
 
     ``build`` makes the simulator inside the node's failure handling, so a geometry it refuses is announced to
     the other nodes like any error. ``shared_memory``: camera frames go to the OBSW through shared memory
-    (``contracts.shared_blobs``: the OBSW must run on this host).
+    (``contracts.shared_blobs``: the OBSW must run on this host). ``trace``: a file for the time marks of the
+    lock-step (``contracts.hoptrace``).
     """
     keys = Keys(run_id)
     with zenoh.open(conf) as session:
-        bus = Attachment(session, keys, "universe", WallClock(), log, share_blobs=shared_memory)
+        bus = Attachment(session, keys, "universe", WallClock(), log, share_blobs=shared_memory,
+                         trace=None if trace is None else HopTrace("universe", trace))
         if shared_memory:
             log.info("camera frames go to the OBSW through shared memory (%s)", run_folder(run_id))
         bus.subscribe(keys.reply, StepReply)

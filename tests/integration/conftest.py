@@ -32,13 +32,13 @@ def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subpro
 
 @pytest.fixture(scope="session")
 def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The short scenario run twice with the same seed, the second recording its frames raw (shared by the tests of
-    the run, of replay and of PUS-C conformance)."""
+    """The short scenario run twice with the same seed, the second recording its frames raw and tracing its hops
+    (shared by the tests of the run, of replay and of PUS-C conformance)."""
     base = tmp_path_factory.mktemp("runs")
     outs = []
-    for i, frames in ((1, "reference"), (2, "raw")):
+    for i, extra in ((1, ("--record-frames", "reference")), (2, ("--record-frames", "raw", "--trace"))):
         out = base / f"run{i}"
-        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), "--record-frames", frames, timeout=300)
+        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), *extra, timeout=300)
         assert r.returncode == 0, f"run {i} failed:\n{r.stdout}\n{r.stderr}\n" + "\n".join(
             f"--- {n}.log\n{(out / f'{n}.log').read_text()[-3000:]}" for n in ("universe", "obsw", "ground")
             if (out / f"{n}.log").exists())

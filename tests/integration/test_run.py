@@ -15,7 +15,9 @@ import pytest
 
 from contracts import pus, sdls
 from contracts.bus import free_tcp_port
+from contracts.hoptrace import hop_table, read_traces
 from contracts.steplog import STEP_RECORD, StepLog
+from flyby.launcher import trace_file
 from tests.integration.conftest import DATA, flyby
 
 pytestmark = pytest.mark.integration
@@ -50,6 +52,28 @@ def test_the_ground_node_draws_the_animation_in_its_helper_process(short_runs: t
         log = (run / "ground.log").read_text()
         assert "report: " in log and "helper process" not in log, log[-3000:]
         assert (run / "report" / "flyby.gif").stat().st_size > 0
+
+
+def test_a_traced_run_times_every_period_of_its_loop(short_runs: tuple[Path, Path]) -> None:
+    """`flyby run --trace` leaves each node's hop trace; every period of the run has its whole chain, each link
+    within one node lasting no less than zero, and the links of a period adding up to its time from request to
+    request (the untraced run's telemetry is the same: see the next test)."""
+    run = short_runs[1]
+    marks = read_traces(run / trace_file(n) for n in ("universe", "obsw", "ground"))
+    table = hop_table(marks)
+    periods = len((run / "truth.csv").read_text().splitlines()) - 2  # header; the last period has no reply
+    assert {len(s.durations_s) for s in table[:-1]} == {periods}
+    assert len(table[-1].durations_s) == periods - 1
+    for s in table:
+        if "->" in s.name and ": " not in s.name.split("->")[1]:  # both marks taken by the same node
+            assert min(s.durations_s) >= 0.0, s.name
+    first: dict[int, int] = {}
+    for m in marks:
+        if m.node == "universe" and m.what == "publish:obsw/step":
+            first.setdefault(m.step, m.t_ns)
+    request_to_request = sum(first[k + 1] - first[k] for k in range(periods - 1)) * 1e-9
+    assert sum(sum(s.durations_s[:periods - 1]) for s in table) == pytest.approx(request_to_request, rel=1e-9)
+    assert any(m.node == "ground" and m.what == "work" for m in marks)
 
 
 def test_same_seed_gives_identical_telemetry(short_runs: tuple[Path, Path]) -> None:
