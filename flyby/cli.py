@@ -147,8 +147,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     return report(args)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of every sub-command."""
+# sub-commands whose parsers need no more than this module's imports: ``flyby run`` starts without loading the
+# flight software, the replay and Dask, which the other sub-commands' parsers import (about a second)
+LIGHT_COMMANDS = frozenset({"run", "credentials", "validate", "render", "dictionary", "report"})
+
+
+def build_parser(light_only: bool = False) -> argparse.ArgumentParser:
+    """The argument parser of every sub-command, or of ``LIGHT_COMMANDS`` only."""
     p = argparse.ArgumentParser(prog="flyby", description=__doc__)
     sub = p.add_subparsers(dest="command", required=True)
     r = sub.add_parser("run", help="run a scenario: universe, obsw and ground as three processes over Zenoh")
@@ -189,11 +194,13 @@ def build_parser() -> argparse.ArgumentParser:
     dic = sub.add_parser("dictionary", help="print the TM/TC dictionary as Markdown, or export its telemetry as XTCE")
     dic.add_argument("--xtce", type=Path, default=None, metavar="FILE", help="write XTCE 1.2 (for Yamcs) to FILE")
     dic.set_defaults(func=cmd_dictionary)
-    from ground.tmquery import add_tm_arguments
-
     rep = sub.add_parser("report", help="(re)write a run folder's flyby report: report.html, report/, figures.json")
     rep.add_argument("run_dir", type=Path)
     rep.set_defaults(func=cmd_report)
+    if light_only:
+        return p
+    from ground.tmquery import add_tm_arguments
+
     add_tm_arguments(sub.add_parser("tm", help="list, print or export (CSV) archived telemetry parameters of a run"))
     from flyby.campaign import add_parser as add_campaign
     from flyby.console import add_parser as add_ground_console
@@ -209,7 +216,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``flyby`` console command."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(light_only=command in LIGHT_COMMANDS).parse_args(argv)
     return int(args.func(args))
 
 
