@@ -158,32 +158,34 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
     logs: dict[str, IO[bytes]] = {}
     interrupted = False
     tty = stream.isatty()
-    with zenoh.open(conf) as session:
+    try:
+        # the nodes first: opening a session waits about 0.5 s for endpoints not yet listening, while the nodes
+        # take seconds to import and build their cores (their status and any Shutdown come after that)
+        for node in NODES:
+            logs[node] = open(folder / f"{node}.log", "wb")
+            procs[node] = subprocess.Popen(cmds[node], stdout=logs[node], stderr=subprocess.STDOUT,
+                                           stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent,
+                                           start_new_session=True)
+        with zenoh.open(conf) as session:
 
-        def on_status(sample: zenoh.Sample) -> None:
-            try:
-                msg, _ = decode(Status, sample.payload.to_bytes())
-            except DecodeError:
-                return
-            with watch.lock:
-                watch.status[msg.node] = msg
+            def on_status(sample: zenoh.Sample) -> None:
+                try:
+                    msg, _ = decode(Status, sample.payload.to_bytes())
+                except DecodeError:
+                    return
+                with watch.lock:
+                    watch.status[msg.node] = msg
 
-        def on_shutdown(sample: zenoh.Sample) -> None:
-            try:
-                msg, _ = decode(Shutdown, sample.payload.to_bytes())
-            except DecodeError:
-                return
-            with watch.lock:
-                watch.shutdowns.append(msg)
+            def on_shutdown(sample: zenoh.Sample) -> None:
+                try:
+                    msg, _ = decode(Shutdown, sample.payload.to_bytes())
+                except DecodeError:
+                    return
+                with watch.lock:
+                    watch.shutdowns.append(msg)
 
-        subs = [session.declare_subscriber(keys.status_all, on_status),
-                session.declare_subscriber(keys.shutdown, on_shutdown)]
-        try:
-            for node in NODES:
-                logs[node] = open(folder / f"{node}.log", "wb")
-                procs[node] = subprocess.Popen(cmds[node], stdout=logs[node], stderr=subprocess.STDOUT,
-                                               stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent,
-                                               start_new_session=True)
+            subs = [session.declare_subscriber(keys.status_all, on_status),
+                    session.declare_subscriber(keys.shutdown, on_shutdown)]
             last_print = -1e9
             first_exit: float | None = None
             grace = scenario.bus.reply_timeout_s + 10.0
@@ -208,20 +210,20 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
                     att = Attachment(session, keys, "launcher", clock, logging.getLogger("launcher"))
                     att.shutdown("interrupted by the user (Ctrl-C)", failed=True)
                     first_exit = clock.now()
-        finally:
-            for p in procs.values():
-                if p.poll() is None:
-                    p.terminate()
-            for p in procs.values():
-                try:
-                    p.wait(timeout=5)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
-            for f in logs.values():
-                f.close()
             del subs
-            shutil.rmtree(shared_run_folder(run_id), ignore_errors=True)  # frames a node that died left behind
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                p.terminate()
+        for p in procs.values():
+            try:
+                p.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        for f in logs.values():
+            f.close()
+        shutil.rmtree(shared_run_folder(run_id), ignore_errors=True)  # frames a node that died left behind
     if tty:
         print(file=stream)
     return _summarise(folder, procs, watch, interrupted, stream)
