@@ -19,11 +19,10 @@ from typing import Any
 import zenoh
 
 from contracts.bus import Keys
-from contracts.clock import Clock
-from contracts.clock import monotonic_ns
+from contracts.clock import Clock, monotonic_ns
 from contracts.errors import DecodeError, NodeFailure
-from contracts.hoptrace import ARRIVED, DECODED, PUBLISH, PUBLISHED, TAKEN, HopTrace, message_mark
 from contracts.exitcodes import EXIT_INTERNAL, EXIT_OK, EXIT_PEER
+from contracts.hoptrace import ARRIVED, DECODED, PUBLISH, PUBLISHED, TAKEN, HopTrace, message_mark
 from contracts.messages import Message, Shutdown, Status, decode, encode
 from contracts.shared_blobs import MIN_SHARED_OCTETS, BlobSharer, SharedBlobError, is_reference, open_blob
 
