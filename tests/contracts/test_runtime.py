@@ -121,6 +121,6 @@ def test_an_unanswered_request_is_resent_and_then_its_peer_failure(sessions) -> 
         pending = [bus.ask(KEYS.step, request(1), b"", StepReply, "obsw"),
                    bus.ask(KEYS.ground_step, GroundStep(step=1, utc_s=1.0), b"", GroundReply, "ground")]
         with pytest.raises(NodeFailure) as failure:
-            bus.collect(pending, timeout_s=4.0, resend_s=0.5)
+            bus.collect(pending, timeout_s=2.0, resend_s=0.25)
     assert failure.value.node == "ground" and "no reply to step 1" in str(failure.value)
     assert seen["ground"] >= 3 and seen["obsw"] < seen["ground"]  # ground resent some 7 times, obsw not after its answer
