@@ -22,7 +22,8 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
+from collections.abc import Callable
+from typing import IO, Any
 
 import zenoh
 
@@ -93,6 +94,23 @@ def node_commands(config: Path, run_id: str, out: Path, ports: dict[str, int], r
         "ground": [python, "-m", "ground", *common, "--listen", ep["ground"], "--connect", ep["universe"],
                    "--connect", ep["obsw"]],
     }
+
+
+def _watch_nodes(session: zenoh.Session, keys: Keys, watch: Watch) -> list[zenoh.Subscriber]:
+    """Keep the nodes' latest status and every Shutdown in ``watch`` (undecodable samples ignored); the subscribers
+    live as long as the list returned."""
+    def keeping(kind: type[Status] | type[Shutdown], keep: Callable[[Any], None]) -> Callable[[zenoh.Sample], None]:
+        def on_sample(sample: zenoh.Sample) -> None:
+            try:
+                msg, _ = decode(kind, sample.payload.to_bytes())
+            except DecodeError:
+                return
+            with watch.lock:
+                keep(msg)
+        return on_sample
+
+    return [session.declare_subscriber(keys.status_all, keeping(Status, lambda m: watch.status.__setitem__(m.node, m))),
+            session.declare_subscriber(keys.shutdown, keeping(Shutdown, watch.shutdowns.append))]
 
 
 def trace_file(node: str) -> str:
@@ -167,25 +185,7 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
                                            stdin=subprocess.DEVNULL, preexec_fn=_die_with_parent,
                                            start_new_session=True)
         with zenoh.open(conf) as session:
-
-            def on_status(sample: zenoh.Sample) -> None:
-                try:
-                    msg, _ = decode(Status, sample.payload.to_bytes())
-                except DecodeError:
-                    return
-                with watch.lock:
-                    watch.status[msg.node] = msg
-
-            def on_shutdown(sample: zenoh.Sample) -> None:
-                try:
-                    msg, _ = decode(Shutdown, sample.payload.to_bytes())
-                except DecodeError:
-                    return
-                with watch.lock:
-                    watch.shutdowns.append(msg)
-
-            subs = [session.declare_subscriber(keys.status_all, on_status),
-                    session.declare_subscriber(keys.shutdown, on_shutdown)]
+            subs = _watch_nodes(session, keys, watch)
             last_print = -1e9
             first_exit: float | None = None
             grace = scenario.bus.reply_timeout_s + 10.0
