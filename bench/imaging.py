@@ -20,7 +20,8 @@ and the bad-pixel map ground would upload (dead pixels and columns, half the hot
   bodies of 3 px and more), each with its classes (``imaging_trials.failure_classes``: small, faint, phase, edge,
   close pair, plume, unrecognised trajectory; and what was reported instead);
 - one defect more (a saturated hot pixel or a 6 px cosmic ray on Didymos, on Dimorphos, or anywhere; same noise):
-  reports whose body changed (to another body or to none);
+  reports whose body changed (to another body or to none), those of bodies the chain must find (as for detection)
+  counted apart;
 - centroids: distance from the OpenCV region centroid of the same blob; distance from the true centre of correctly
   reported bodies not cut by the frame's edge, before and after the phase correction.
 
@@ -81,6 +82,7 @@ def independent(n: int, seed: int, defects: bool = True) -> None:
     errors: dict[int, list[tuple[float, float]]] = {0: [], 1: []}
     far: list[str] = []
     changed: list[str] = []
+    changed_must = 0  # of bodies the chain must find (``visible``): at least 3 px, bright, apart
     lost_found = 0
     trials = 0
     names = ("Didymos", "Dimorphos")
@@ -124,7 +126,11 @@ def independent(n: int, seed: int, defects: bool = True) -> None:
                 if got[i] == base[i]:
                     continue
                 if got[i] is not None and base[i] is not None:
-                    changed.append(f"frame {k}: {kind} on {target}: {names[i]} {base[i]} -> {got[i]}")
+                    must = visible(t.frame, i)
+                    changed_must += must
+                    size = t.frame.truth[i].diameter_512_px
+                    changed.append(f"frame {k}: {kind} on {target}: {names[i]} ({size:.2f} px"
+                                   f"{'' if must else ', not one the chain must find'}) {base[i]} -> {got[i]}")
                 else:
                     lost_found += 1
     print(f"Independent frames: {n} (tests/obsw/frame_generator.py, seed {seed})")
@@ -142,8 +148,9 @@ def independent(n: int, seed: int, defects: bool = True) -> None:
     for line in wrong:
         print(f"    {line}")
     if defects:
-        print(f"  one defect more, {trials} trials x 2 bodies: {len(changed)} reports changed to another blob, "
-              f"{lost_found} found or lost")
+        print(f"  one defect more, {trials} trials x 2 bodies: {len(changed)} reports changed to another blob "
+              f"({changed_must} of bodies the chain must find, {len(changed) - changed_must} of smaller or fainter "
+              f"ones), {lost_found} found or lost")
         for line in changed:
             print(f"    {line}")
     beyond = sum(1 for d in opencv if d > 2.0)

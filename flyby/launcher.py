@@ -118,6 +118,12 @@ def trace_file(node: str) -> str:
     return f"{node}.trace.csv"
 
 
+def _stepping(watch: Watch) -> bool:
+    """Whether the universe has reported its status: the nodes are up and the run steps."""
+    with watch.lock:
+        return "universe" in watch.status
+
+
 def _progress_line(watch: Watch, end_s: float) -> str:
     with watch.lock:
         u = watch.status.get("universe")
@@ -187,15 +193,18 @@ def _launch(config: Path, scenario: Scenario, out: Path | None, realtime: bool, 
         with zenoh.open(conf) as session:
             subs = _watch_nodes(session, keys, watch)
             last_print = -1e9
+            stepping = False  # the universe's first status: a line says so at once, not at the next interval
             first_exit: float | None = None
             grace = scenario.bus.reply_timeout_s + 10.0
             while any(p.poll() is None for p in procs.values()):
                 try:
                     now = clock.now()
-                    if now - last_print >= (0.5 if tty else 10.0):
+                    started = not stepping and _stepping(watch)
+                    if now - last_print >= (0.5 if tty else 10.0) or started:
                         line = _progress_line(watch, scenario.universe.end_s)
                         print(("\r" + line) if tty else line, end="" if tty else "\n", file=stream, flush=True)
                         last_print = now
+                        stepping = stepping or started
                     failed = [n for n, p in procs.items() if p.returncode not in (None, 0)]
                     if first_exit is None and (failed or procs["universe"].poll() is not None):
                         first_exit = now
