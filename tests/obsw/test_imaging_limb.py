@@ -4,6 +4,7 @@ the plume behind it, against the truth."""
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -97,8 +98,9 @@ def _transit(rng: np.random.Generator, plume: bool, phase_deg: tuple[float, floa
                  sun_azimuth_deg=float(rng.uniform(0.0, 360.0)), plume=fan)
 
 
+@functools.cache  # the tests share the frames: rendering them is most of their time
 def _transits(phase_deg: tuple[float, float] = (15.0, 40.0), seeds: int = 24, stream: int = 2027
-              ) -> list[tuple[Scene, FramePrediction, np.ndarray, Detections]]:
+              ) -> tuple[tuple[Scene, FramePrediction, np.ndarray, Detections], ...]:
     """Transit frames of the independent generator in which the chain cuts Dimorphos out of a shared region."""
     out = []
     for seed in range(seeds):
@@ -109,7 +111,7 @@ def _transits(phase_deg: tuple[float, float] = (15.0, 40.0), seeds: int = 24, st
         det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
         if det.dimorphos is not None and det.dimorphos.trimmed_from:
             out.append((scene, prediction, frame, det))
-    return out
+    return tuple(out)
 
 
 def test_a_cut_off_its_body_is_moved_to_the_limb_and_one_on_it_is_kept() -> None:
