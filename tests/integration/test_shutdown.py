@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import os
 import select
-from contextlib import ExitStack
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Callable
+from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
@@ -54,29 +55,28 @@ def _wait_for_exit(pids: list[int], timeout_s: float) -> None:
             os.close(fd)
 
 
-def _wait_for_progress(launcher: subprocess.Popen[str], mode: str) -> None:
-    """Read the launcher's output until a progress line whose mode contains ``mode`` (each read blocks until the next
+def _read_progress_until(launcher: subprocess.Popen[str], done: Callable[[str], bool], what: str) -> None:
+    """Read the launcher's output until a progress line for which ``done`` holds (each read blocks until the next
     line, the event waited on; pytest's timeout bounds a launcher that never prints one)."""
     assert launcher.stdout is not None
     seen = []
     for line in launcher.stdout:
         seen.append(line)
-        if line.startswith("t =") and mode in line.split("mode ", 1)[-1]:
+        if line.startswith("t =") and done(line):
             return
-    pytest.fail(f"the run ended before a progress line in mode {mode!r}:\n" + "".join(seen))
+    pytest.fail(f"the run ended before {what}:\n" + "".join(seen))
+
+
+def _wait_for_progress(launcher: subprocess.Popen[str], mode: str) -> None:
+    """Wait for a progress line whose mode contains ``mode``."""
+    _read_progress_until(launcher, lambda line: mode in line.split("mode ", 1)[-1],
+                         f"a progress line in mode {mode!r}")
 
 
 def _wait_for_shared_frames(launcher: subprocess.Popen[str], folder: Path) -> None:
-    """Read the launcher's progress lines until the run's shared-memory folder exists (the universe made it for its
-    first frame and keeps it to the run's end; checked at each line, the event waited on; pytest's timeout bounds a
-    launcher that prints none)."""
-    assert launcher.stdout is not None
-    seen = []
-    for line in launcher.stdout:
-        seen.append(line)
-        if line.startswith("t =") and folder.is_dir():
-            return
-    pytest.fail("the run ended before the universe shared a frame:\n" + "".join(seen))
+    """Wait for a progress line once the run's shared-memory folder exists (the universe makes it for its first frame
+    and keeps it to the run's end)."""
+    _read_progress_until(launcher, lambda _: folder.is_dir(), "the universe shared a frame")
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
