@@ -1,6 +1,6 @@
 """Benchmark of the imaging subsystem on independent frames, against the truth and the OpenCV pipeline, and its speed.
 
-Run: .venv/bin/python bench/imaging.py [--frames N] [--timing-frames M] [--repeats R] [--seed S]
+Run: .venv/bin/python bench/imaging.py [--frames N] [--timing-frames M] [--repeats R] [--seed S] [--jobs J]
 
 Independent frames: ``tests/obsw/frame_generator.py`` (written for the tests, sharing nothing with the universe's
 camera: triaxial bodies, four shading laws, phase 20-120 deg, Didymos 1-400 px across, plume in 40 % of the frames,
@@ -36,6 +36,10 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+from collections.abc import Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from itertools import repeat
 from pathlib import Path
 from time import perf_counter
 
@@ -71,101 +75,148 @@ from universe.shapes import ShapeModel  # noqa: E402
 DEFECTS = (("hot", 0), ("hot", 1), ("hot", None), ("cosmic", 0), ("cosmic", 1), ("cosmic", None))
 
 
-def independent(n: int, seed: int, defects: bool = True) -> None:
-    """Run the trials on n independent frames and print the figures, each miss and wrong report with its classes."""
-    found = {0: [0, 0], 1: [0, 0]}
-    swallowed_found = {0: [0, 0], 1: [0, 0]}
-    misses: list[str] = []
-    wrong: list[str] = []
-    wrong_small = 0
-    opencv: list[float] = []
-    errors: dict[int, list[tuple[float, float]]] = {0: [], 1: []}
-    far: list[str] = []
-    changed: list[str] = []
-    changed_must = 0  # of bodies the chain must find (``visible``): at least 3 px, bright, apart
-    lost_found = 0
-    trials = 0
-    names = ("Didymos", "Dimorphos")
-    for k in range(n):
-        rng = np.random.default_rng([seed, k])
-        scene = random_scene(rng)
-        prediction = prediction_for(scene, rng, 3.0 if rng.random() < 0.5 else 30.0)
-        t = run_trial(scene, k, prediction)
-        base = (t.didymos.truth_index, t.dimorphos.truth_index)
-        for i, body in ((0, t.didymos), (1, t.dimorphos)):
-            size = t.frame.truth[i].diameter_512_px
-            line = (f"frame {k}: {names[i]} ({size:.1f} px, SNR {peak_snr(t.frame, i):.0f}): "
-                    f"{', '.join(failure_classes(t, i))}")
-            if visible(t.frame, i, require_apart=False) and not visible(t.frame, i):
-                swallowed_found[i][0] += 1
-                swallowed_found[i][1] += body.truth_index == i
-            if visible(t.frame, i):
-                found[i][0] += 1
-                found[i][1] += body.truth_index == i
-                if body.truth_index != i:
-                    misses.append(line)
-            if body.truth_index is not None and body.truth_index != i:
-                if visible(t.frame, i, require_snr=False, require_apart=False):
-                    wrong.append(line)
-                else:
-                    wrong_small += 1
-            if body.opencv_px is not None:
-                opencv.append(body.opencv_px)
-            blob = t.detections.didymos if i == 0 else t.detections.dimorphos
-            if body.truth_index == i and blob is not None and not blob.touches_edge:
-                errors[i].append((body.uncorrected_error_px, body.error_px))  # type: ignore[arg-type]
-                if body.error_px > PAPER_LIMIT_PX:  # type: ignore[operator]
-                    far.append(f"frame {k}: {names[i]} {body.error_px:.1f} px from its centre: "
+NAMES = ("Didymos", "Dimorphos")
+
+
+@dataclass
+class Tally:
+    """The trials' figures over some frames; ``merge`` adds another's (lines kept in frame order)."""
+
+    found: list[list[int]] = field(default_factory=lambda: [[0, 0], [0, 0]])  # per body: must be found, found
+    swallowed_found: list[list[int]] = field(default_factory=lambda: [[0, 0], [0, 0]])
+    misses: list[str] = field(default_factory=list)
+    wrong: list[str] = field(default_factory=list)
+    wrong_small: int = 0
+    opencv: list[float] = field(default_factory=list)
+    errors: list[list[tuple[float, float]]] = field(default_factory=lambda: [[], []])
+    far: list[str] = field(default_factory=list)
+    changed: list[str] = field(default_factory=list)
+    changed_must: int = 0  # of bodies the chain must find (``visible``): at least 3 px, bright, apart
+    lost_found: int = 0
+    trials: int = 0
+
+    def merge(self, other: Tally) -> None:
+        """Add ``other``'s figures (of later frames) to these."""
+        for i in (0, 1):
+            for j in (0, 1):
+                self.found[i][j] += other.found[i][j]
+                self.swallowed_found[i][j] += other.swallowed_found[i][j]
+            self.errors[i] += other.errors[i]
+        for name in ("misses", "wrong", "opencv", "far", "changed"):
+            getattr(self, name).extend(getattr(other, name))
+        for name in ("wrong_small", "changed_must", "lost_found", "trials"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
+
+def frame_tally(seed: int, k: int, defects: bool) -> Tally:
+    """The trials of independent frame ``k`` of ``seed`` (its scene, noise and defects fixed by both alone)."""
+    out = Tally()
+    rng = np.random.default_rng([seed, k])
+    scene = random_scene(rng)
+    prediction = prediction_for(scene, rng, 3.0 if rng.random() < 0.5 else 30.0)
+    t = run_trial(scene, k, prediction)
+    base = (t.didymos.truth_index, t.dimorphos.truth_index)
+    for i, body in ((0, t.didymos), (1, t.dimorphos)):
+        size = t.frame.truth[i].diameter_512_px
+        line = (f"frame {k}: {NAMES[i]} ({size:.1f} px, SNR {peak_snr(t.frame, i):.0f}): "
+                f"{', '.join(failure_classes(t, i))}")
+        if visible(t.frame, i, require_apart=False) and not visible(t.frame, i):
+            out.swallowed_found[i][0] += 1
+            out.swallowed_found[i][1] += body.truth_index == i
+        if visible(t.frame, i):
+            out.found[i][0] += 1
+            out.found[i][1] += body.truth_index == i
+            if body.truth_index != i:
+                out.misses.append(line)
+        if body.truth_index is not None and body.truth_index != i:
+            if visible(t.frame, i, require_snr=False, require_apart=False):
+                out.wrong.append(line)
+            else:
+                out.wrong_small += 1
+        if body.opencv_px is not None:
+            out.opencv.append(body.opencv_px)
+        blob = t.detections.didymos if i == 0 else t.detections.dimorphos
+        if body.truth_index == i and blob is not None and not blob.touches_edge:
+            out.errors[i].append((body.uncorrected_error_px, body.error_px))  # type: ignore[arg-type]
+            if body.error_px > PAPER_LIMIT_PX:  # type: ignore[operator]
+                out.far.append(f"frame {k}: {NAMES[i]} {body.error_px:.1f} px from its centre: "
                                f"{', '.join(c for c in failure_classes(t, i) if not c.startswith('reported'))}")
-        if not defects:
-            continue
-        for kind, target in DEFECTS:
-            got = perturbed_identities(scene, k, prediction, kind, target, np.random.default_rng([seed, k, 7]))
-            trials += 1
-            for i in (0, 1):
-                if got[i] == base[i]:
-                    continue
-                if got[i] is not None and base[i] is not None:
-                    must = visible(t.frame, i)
-                    changed_must += must
-                    size = t.frame.truth[i].diameter_512_px
-                    changed.append(f"frame {k}: {kind} on {target}: {names[i]} ({size:.2f} px"
+    if not defects:
+        return out
+    for kind, target in DEFECTS:
+        got = perturbed_identities(scene, k, prediction, kind, target, np.random.default_rng([seed, k, 7]))
+        out.trials += 1
+        for i in (0, 1):
+            if got[i] == base[i]:
+                continue
+            if got[i] is not None and base[i] is not None:
+                must = visible(t.frame, i)
+                out.changed_must += must
+                size = t.frame.truth[i].diameter_512_px
+                out.changed.append(f"frame {k}: {kind} on {target}: {NAMES[i]} ({size:.2f} px"
                                    f"{'' if must else ', not one the chain must find'}) {base[i]} -> {got[i]}")
-                else:
-                    lost_found += 1
+            else:
+                out.lost_found += 1
+    return out
+
+
+def _tallies(n: int, seed: int, defects: bool, jobs: int) -> Iterator[Tally]:
+    """Each frame's tally in frame order, computed in ``jobs`` processes."""
+    if jobs <= 1:
+        yield from (frame_tally(seed, k, defects) for k in range(n))
+        return
+    with ProcessPoolExecutor(max_workers=jobs, initializer=warm_up) as pool:
+        yield from pool.map(frame_tally, repeat(seed), range(n), repeat(defects))
+
+
+def independent(n: int, seed: int, defects: bool = True, jobs: int = 1) -> None:
+    """Run the trials on n independent frames and print the figures, each miss and wrong report with its classes;
+    progress on stderr. The figures are the same for any ``jobs``."""
+    total = Tally()
+    t0 = perf_counter()
+    for k, tally in enumerate(_tallies(n, seed, defects, jobs), start=1):
+        total.merge(tally)
+        if k % 10 == 0 or k == n:
+            left = (perf_counter() - t0) / k * (n - k)
+            print(f"\r  frames {k}/{n}, about {left:.0f} s left ", end="\n" if k == n else "", file=sys.stderr,
+                  flush=True)
+    _print_tally(total, n, seed, defects)
+
+
+def _print_tally(t: Tally, n: int, seed: int, defects: bool) -> None:
     print(f"Independent frames: {n} (tests/obsw/frame_generator.py, seed {seed})")
-    for i, name in enumerate(names):
-        total, ok = found[i]
+    for i, name in enumerate(NAMES):
+        total, ok = t.found[i]
         print(f"  {name} detected in {ok} of {total} frames where it must be ({100.0 * ok / max(total, 1):.1f} %)")
-        total, ok = swallowed_found[i]
+        total, ok = t.swallowed_found[i]
         if total:
             print(f"    and in {ok} of {total} frames where the other body swallows it (not required)")
-    print(f"  misses: {len(misses)}")
-    for line in misses:
+    print(f"  misses: {len(t.misses)}")
+    for line in t.misses:
         print(f"    {line}")
-    print(f"  wrong reports of bodies of 3 px and more: {len(wrong)} (on another body, a star, a defect or the "
-          f"plume); of smaller bodies: {wrong_small}")
-    for line in wrong:
+    print(f"  wrong reports of bodies of 3 px and more: {len(t.wrong)} (on another body, a star, a defect or the "
+          f"plume); of smaller bodies: {t.wrong_small}")
+    for line in t.wrong:
         print(f"    {line}")
     if defects:
-        print(f"  one defect more, {trials} trials x 2 bodies: {len(changed)} reports changed to another blob "
-              f"({changed_must} of bodies the chain must find, {len(changed) - changed_must} of smaller or fainter "
-              f"ones), {lost_found} found or lost")
-        for line in changed:
+        print(f"  one defect more, {t.trials} trials x 2 bodies: {len(t.changed)} reports changed to another blob "
+              f"({t.changed_must} of bodies the chain must find, {len(t.changed) - t.changed_must} of smaller or "
+              f"fainter ones), {t.lost_found} found or lost")
+        for line in t.changed:
             print(f"    {line}")
-    beyond = sum(1 for d in opencv if d > 2.0)
-    print(f"  centroid vs the OpenCV region centroid of the same blob: {len(opencv)} reports, max {max(opencv):.2e} px, "
-          f"{beyond} beyond 2 px, {sum(1 for d in opencv if d > 15.0)} beyond 15 px")
-    for i, name in enumerate(names):
-        if not errors[i]:
+    beyond = sum(1 for d in t.opencv if d > 2.0)
+    print(f"  centroid vs the OpenCV region centroid of the same blob: {len(t.opencv)} reports, max "
+          f"{max(t.opencv):.2e} px, {beyond} beyond 2 px, {sum(1 for d in t.opencv if d > 15.0)} beyond 15 px")
+    for i, name in enumerate(NAMES):
+        if not t.errors[i]:
             continue
-        before = np.array([e[0] for e in errors[i]])
-        after = np.array([e[1] for e in errors[i]])
+        before = np.array([e[0] for e in t.errors[i]])
+        after = np.array([e[1] for e in t.errors[i]])
         print(f"  {name} centre vs truth ({len(after)} reports, not at the edge): phase-corrected median "
               f"{np.median(after):.2f} px, 99th pct {np.percentile(after, 99):.2f}, max {after.max():.2f}, "
               f"{int((after > PAPER_LIMIT_PX).sum())} beyond 15 px; uncorrected median {np.median(before):.2f}, max "
               f"{before.max():.2f}")
-    for line in far:
+    for line in t.far:
         print(f"    {line}")
 
 
@@ -237,6 +288,8 @@ def main() -> None:
     parser.add_argument("--timing-frames", type=int, default=40, help="frames of each set for the timing")
     parser.add_argument("--repeats", type=int, default=15, help="timed runs per frame and pipeline")
     parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="processes for the independent-frame trials (the figures are the same for any number)")
     parser.add_argument("--no-defect-trials", action="store_true",
                         help="skip the one-defect-more trials (six more frames per frame)")
     parser.add_argument("--opencv-threads", type=int, default=1,
@@ -245,7 +298,7 @@ def main() -> None:
     cv2.setNumThreads(args.opencv_threads)
     warm_up()
     if args.frames:
-        independent(args.frames, args.seed, not args.no_defect_trials)
+        independent(args.frames, args.seed, not args.no_defect_trials, args.jobs)
     if not args.timing_frames:
         return
     flyby: list[TimedFrame] = [(frame, pred, None, None) for frame, pred in flyby_frames(args.timing_frames,
