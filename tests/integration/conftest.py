@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -32,18 +33,21 @@ def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subpro
 
 @pytest.fixture(scope="session")
 def short_runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
-    """The short scenario run twice with the same seed, the second recording its frames raw and tracing its hops
-    (shared by the tests of the run, of replay and of PUS-C conformance)."""
+    """The short scenario run twice with the same seed, at the same time on this host (as two users' runs may be),
+    the second recording its frames raw and tracing its hops (shared by the tests of the run, of replay and of
+    PUS-C conformance)."""
     base = tmp_path_factory.mktemp("runs")
-    outs = []
-    for i, extra in ((1, ("--record-frames", "reference")), (2, ("--record-frames", "raw", "--trace"))):
-        out = base / f"run{i}"
-        r = flyby("run", str(DATA / "short.yaml"), "--out", str(out), *extra, timeout=300)
+    extras = {1: ("--record-frames", "reference"), 2: ("--record-frames", "raw", "--trace")}
+    outs = {i: base / f"run{i}" for i in extras}
+    with ThreadPoolExecutor(max_workers=len(extras)) as pool:
+        done = {i: pool.submit(flyby, "run", str(DATA / "short.yaml"), "--out", str(outs[i]), *extra, timeout=400)
+                for i, extra in extras.items()}
+    for i, future in done.items():
+        r, out = future.result(), outs[i]
         assert r.returncode == 0, f"run {i} failed:\n{r.stdout}\n{r.stderr}\n" + "\n".join(
             f"--- {n}.log\n{(out / f'{n}.log').read_text()[-3000:]}" for n in ("universe", "obsw", "ground")
             if (out / f"{n}.log").exists())
-        outs.append(out)
-    return outs[0], outs[1]
+    return outs[1], outs[2]
 
 
 def start_nodes(out: Path, scenario: Path, realtime: bool = True, credentials: Path | None = None,
