@@ -3,23 +3,46 @@ missed, scored against the universe's truth by the report's own scoring."""
 
 from __future__ import annotations
 
+import multiprocessing
+from collections.abc import Iterator
+from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
+
+import pytest
 
 from analysis.runfolder import RunData
 from analysis.scoring import centroid_errors_px, score_run
 from analysis.telemetry import received_telemetry
 from analysis.truth import Truth
+from contracts.messages import TruthRecord
 from flyby.inprocess import run_in_process
+from ground.segment import ReceivedPacket
 from scenario.model import load_run_inputs
 
 KEPT = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "mc"
+Outcome = tuple[list[TruthRecord], list[ReceivedPacket]]  # a run's truth and the telemetry ground received
+NAMES = ("nominal-run00545", "nominal-run00345", "nominal-run00957", "nominal-run00432", "worst-late-near-run00073")
 
 
-def _replayed(name: str) -> RunData:
-    """The kept scenario ``name`` run alone in one process, as the report reads a run."""
+def _run(name: str) -> Outcome:
+    """The kept scenario ``name`` run alone in one process."""
     scenario, timeline = load_run_inputs(KEPT / f"{name}.yaml")
     out = run_in_process(scenario, timeline)
-    return RunData(Path(f"<{name}>"), scenario, Truth.from_records(out.truth), received_telemetry(out.received, name))
+    return out.truth, out.received
+
+
+@pytest.fixture(scope="module")
+def runs() -> Iterator[dict[str, Future[Outcome]]]:
+    """Every kept run, started at once over two fresh processes (each test waits for its own)."""
+    with ProcessPoolExecutor(max_workers=2, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield {name: pool.submit(_run, name) for name in NAMES}
+
+
+def _replayed(runs: dict[str, Future[Outcome]], name: str) -> RunData:
+    """The kept scenario ``name``'s run, as the report reads a run."""
+    truth, received = runs[name].result()
+    scenario, _ = load_run_inputs(KEPT / f"{name}.yaml")
+    return RunData(Path(f"<{name}>"), scenario, Truth.from_records(truth), received_telemetry(received, name))
 
 
 def _assert_centroids_within_10_px(data: RunData) -> None:
@@ -29,43 +52,43 @@ def _assert_centroids_within_10_px(data: RunData) -> None:
     assert errors[worst] <= 10.0, f"frame {ids[worst]}: {errors[worst]:.2f} px"
 
 
-def test_run_545_keeps_every_centroid_near_dimorphos() -> None:
+def test_run_545_keeps_every_centroid_near_dimorphos(runs: dict[str, Future[Outcome]]) -> None:
     """Run 545 of the 1000-run campaign (the plume's fan taken for Didymos at C/A-57 s, with ground's nominal 2.3
     sigma off in C/A time; Dimorphos cut with the plume's core behind it at C/A-3.5 s) reports every Dimorphos
     centroid within 10 px of its true centre: the frame predicted from the recognised trajectory, the cut checked
     against Dimorphos's limb."""
-    _assert_centroids_within_10_px(_replayed("nominal-run00545"))
+    _assert_centroids_within_10_px(_replayed(runs, "nominal-run00545"))
 
 
-def test_run_345_keeps_the_target_when_the_plume_outshines_didymos() -> None:
+def test_run_345_keeps_the_target_when_the_plume_outshines_didymos(runs: dict[str, Future[Outcome]]) -> None:
     """Run 345 of the image-level campaign after the settle gate (the plume 2.3 times the nominal's light, its fan
     merged with Didymos and taken for it from C/A-152 s, a piece of Didymos 9-16 px from Dimorphos taken for
     Dimorphos) keeps every requirement: Dimorphos is searched only where the lock gate would accept its line of sight,
     so the estimate is never fed the piece of Didymos."""
-    data = _replayed("nominal-run00345")
+    data = _replayed(runs, "nominal-run00345")
     figs, _ = score_run(data, data.scenario.ground.report)
     assert figs.in_view_pass and figs.pointing_pass and figs.centroid_pass, figs
 
 
-def test_run_957_keeps_dimorphos_beside_didymos_limb_by_its_own_limb() -> None:
+def test_run_957_keeps_dimorphos_beside_didymos_limb_by_its_own_limb(runs: dict[str, Future[Outcome]]) -> None:
     """Run 957 of the image-level campaign on a6e17b5 (at C/A-5 s Dimorphos touches Didymos's limb and its cut kept
     the limb beside it, 20.7 px off) reports every Dimorphos centroid within 10 px of its true centre: the circle of
     Dimorphos's limb, found where the prediction puts it, replaces the cut."""
-    _assert_centroids_within_10_px(_replayed("nominal-run00957"))
+    _assert_centroids_within_10_px(_replayed(runs, "nominal-run00957"))
 
 
-def test_run_432_finds_dimorphos_by_its_limb_at_63_deg_of_phase() -> None:
+def test_run_432_finds_dimorphos_by_its_limb_at_63_deg_of_phase(runs: dict[str, Future[Outcome]]) -> None:
     """Run 432 of the image-level campaign (at C/A+5 s Dimorphos, at 63 deg of phase with its terminator towards
     Didymos, in front of Didymos's limb; its cut by brightness kept Didymos's brighter surface, 15.35 px off) reports
     every Dimorphos centroid within 10 px of its true centre: the limb check runs up to 70 deg of phase."""
-    _assert_centroids_within_10_px(_replayed("nominal-run00432"))
+    _assert_centroids_within_10_px(_replayed(runs, "nominal-run00432"))
 
 
-def test_late_corner_run_73_images_once_the_slew_onto_the_target_is_done() -> None:
+def test_late_corner_run_73_images_once_the_slew_onto_the_target_is_done(runs: dict[str, Future[Outcome]]) -> None:
     """Run 73 of the worst-late-near campaign (centroid level; STANDBY's attitude 1.56 deg off the target when
     ACQUISITION began, past half the field of view) exposes its first frame after the slew, and keeps the pointing
     error under half the field of view and the target in every frame from then on."""
-    data = _replayed("worst-late-near-run00073")
+    data = _replayed(runs, "worst-late-near-run00073")
     figs, _ = score_run(data, data.scenario.ground.report)
     assert figs.pointing_pass, f"{figs.max_pointing_error_deg:.3f} deg"
     assert figs.in_view_fraction == 1.0
