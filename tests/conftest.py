@@ -1,7 +1,43 @@
 """Test-wide settings: Hypothesis never times an example against the wall clock (a loaded CI machine would fail
-tests that are right); each test still bounds its examples with ``max_examples``."""
+tests that are right); each test still bounds its examples with ``max_examples``. The compiled kernels are compiled
+(or loaded from their cache) in two background processes as the session starts, on the core the tests leave idle:
+on a fresh install that is about a minute of compilation the first test to need them no longer pays alone."""
 
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
 from hypothesis import settings
 
 settings.register_profile("flyby", deadline=None)
 settings.load_profile("flyby")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# each node's own warm-up, as the node calls it before its first period (obsw/node.py, universe/node.py)
+_WARM_UPS = (
+    "from obsw import kernels; kernels.warm_up()",
+    "from universe.camera import warm_up; from universe import attitude_rk4; warm_up(); attitude_rk4.warm_up()",
+)
+_warming: list[subprocess.Popen[bytes]] = []
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Start the kernels' compilation in the background; a test that needs a kernel sooner compiles it itself, and
+    Numba writes each cache file whole (a temporary file moved into place), so either process's copy serves."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+    for code in _WARM_UPS:
+        _warming.append(subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env,
+                                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """Leave no warm-up process behind (a short session may end before they do)."""
+    for proc in _warming:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait()
