@@ -6,7 +6,10 @@ The equations are ``obsw.attitude``'s (its module docstring): the discrete trans
 ``H = [I 0]`` in Joseph form, ``P = (I - K H) P (I - K H)^T + K R K^T``, which keeps ``P`` symmetric and positive
 for any gain. They were generic 6x6 matrix products through filterpy, a fifth of the flight software's time per
 period; here they are plain loops in double precision without fast-math (no reassociation), compiled once and
-cached next to this file (``warm_up`` lets the OBSW node pay it before its first control period).
+cached next to this file (``warm_up`` lets the OBSW node pay it before its first control period). Element-wise
+array expressions are written as loops: Numba compiles each generic array operation anew in every cached kernel
+that uses it, which made up half of this module's compile time (the same operations in the same order: the
+results are identical).
 """
 
 from __future__ import annotations
@@ -83,15 +86,36 @@ def predict(p: np.ndarray, w: np.ndarray, dt_s: float, sigma_v: float, sigma_u: 
 def update(p: np.ndarray, r: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The Kalman update of a zero error state with covariance ``p`` on a measurement ``z`` of ``dtheta`` with
     noise covariance ``r`` (3x3): the state correction ``dx`` (6) and the updated covariance (Joseph form)."""
-    s = p[:3, :3] + r
-    k = _mul(np.ascontiguousarray(p[:, :3]), _inverse3(s), False)  # P H^T S^-1
+    s = np.empty((3, 3))
+    p_h = np.empty((6, 3))
+    for i in range(6):
+        for j in range(3):
+            p_h[i, j] = p[i, j]
+            if i < 3:
+                s[i, j] = p[i, j] + r[i, j]
+    k = _mul(p_h, _inverse3(s), False)  # P H^T S^-1
     dx = np.zeros(6)
     for i in range(6):
         dx[i] = k[i, 0] * z[0] + k[i, 1] * z[1] + k[i, 2] * z[2]
     i_kh = np.eye(6)
-    i_kh[:, :3] -= k
-    out = _mul(_mul(i_kh, p, False), i_kh, True) + _mul(_mul(k, r, False), k, True)
+    for i in range(6):
+        for j in range(3):
+            i_kh[i, j] -= k[i, j]
+    out = _mul(_mul(i_kh, p, False), i_kh, True)
+    noise = _mul(_mul(k, r, False), k, True)
+    for i in range(6):
+        for j in range(6):
+            out[i, j] += noise[i, j]
     return dx, out
+
+
+@njit(cache=True, nogil=True)
+def _normalised(q: np.ndarray) -> np.ndarray:
+    """``q / |q|`` in place (``|q|`` from ``np.dot``), returned."""
+    norm = np.sqrt(np.dot(q, q))
+    for i in range(q.shape[0]):
+        q[i] = q[i] / norm
+    return q
 
 
 @njit(cache=True, nogil=True)
@@ -114,7 +138,7 @@ def of_rotvec(v: np.ndarray) -> np.ndarray:
     out = np.empty(4)
     if angle < 1e-12:
         out[0], out[1], out[2], out[3] = 0.5 * v[0], 0.5 * v[1], 0.5 * v[2], 1.0
-        return out / np.sqrt(np.dot(out, out))
+        return _normalised(out)
     s = np.sin(0.5 * angle) / angle
     out[0], out[1], out[2], out[3] = s * v[0], s * v[1], s * v[2], np.cos(0.5 * angle)
     return out
@@ -124,8 +148,10 @@ def of_rotvec(v: np.ndarray) -> np.ndarray:
 def propagate(q: np.ndarray, p: np.ndarray, w: np.ndarray, dt_s: float, sigma_v: float,
               sigma_u: float) -> tuple[np.ndarray, np.ndarray]:
     """The attitude ``q`` turned by ``w dt_s`` (renormalised) and its error covariance carried (``predict``)."""
-    out = product(q, of_rotvec(w * dt_s))
-    return out / np.sqrt(np.dot(out, out)), predict(p, w, dt_s, sigma_v, sigma_u)
+    turn = np.empty(3)
+    for i in range(3):
+        turn[i] = w[i] * dt_s
+    return _normalised(product(q, of_rotvec(turn))), predict(p, w, dt_s, sigma_v, sigma_u)
 
 
 @njit(cache=True, nogil=True)
@@ -135,8 +161,10 @@ def correct(q: np.ndarray, bias: np.ndarray, p: np.ndarray, r: np.ndarray,
     innovation (rotation vector, body, rad)."""
     z = rotvec(error_quaternion(q_meas, q))  # conj(q) (x) q_meas: the innovation in body axes
     dx, p_new = update(p, r, z)
-    out = product(q, of_rotvec(dx[:3].copy()))
-    return out / np.sqrt(np.dot(out, out)), bias + dx[3:], p_new, z
+    bias_new = np.empty(3)
+    for i in range(3):
+        bias_new[i] = bias[i] + dx[3 + i]
+    return _normalised(product(q, of_rotvec(dx[:3].copy()))), bias_new, p_new, z
 
 
 def warm_up() -> None:

@@ -10,6 +10,8 @@ A parameter whose prior sigma is 0 is held at its origin.
 
 It is re-solved at every new measurement over all of them (hundreds near C/A): as numpy on arrays of a few hundred
 it cost a tenth of a period's processor time. Double precision without fast-math; 3x3 systems solved in closed form.
+Element-wise array expressions are written as loops (Numba compiles each generic array operation anew in every
+cached kernel: a third of the compile time), the same operations in the same order.
 """
 
 from __future__ import annotations
@@ -22,6 +24,15 @@ from numba import njit
 ROUNDS = 5  # re-solutions per gate while the inliers change
 MIN_STEP_FRACTION = 1e-6  # step halving gives up below this fraction of the Gauss-Newton step
 N = 3  # parameters: C/A time s, C/A distance m, in-plane LOS offset rad
+
+
+@njit(cache=True, nogil=True)
+def _point(origin: np.ndarray, x: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``origin + x * s``: the parameters of a scaled point."""
+    out = np.empty(N)
+    for k in range(N):
+        out[k] = origin[k] + x[k] * s[k]
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -101,11 +112,11 @@ def _gauss_newton(times: np.ndarray, theta: np.ndarray, use: np.ndarray, origin:
                   free: np.ndarray, v: float, sigma: float, x: np.ndarray, max_iterations: int) -> np.ndarray:
     """The MAP point (scaled) over the measurements ``use`` from ``x``, with step halving."""
     x = x.copy()
-    r = _residuals(times, theta, origin + x * s, v)
+    r = _residuals(times, theta, _point(origin, x, s), v)
     current = _cost(r, use, sigma, x, free)
     w = sigma * sigma
     for _ in range(max_iterations):
-        a, g = _normal_equations(times, origin + x * s, v, s, r, use)
+        a, g = _normal_equations(times, _point(origin, x, s), v, s, r, use)
         for k in range(N):
             g[k] = g[k] / w - x[k]
             for m in range(N):
@@ -115,10 +126,12 @@ def _gauss_newton(times: np.ndarray, theta: np.ndarray, use: np.ndarray, origin:
         step = inv @ g
         length = 1.0
         while True:
-            trial = x + length * step
+            trial = np.empty(N)
+            for k in range(N):
+                trial[k] = x[k] + length * step[k]
             # a candidate distance must stay positive: theta is undefined through d = 0
             if origin[1] + trial[1] * s[1] > 0:
-                r_trial = _residuals(times, theta, origin + trial * s, v)
+                r_trial = _residuals(times, theta, _point(origin, trial, s), v)
                 new = _cost(r_trial, use, sigma, trial, free)
                 if new <= current:
                     break
@@ -127,14 +140,39 @@ def _gauss_newton(times: np.ndarray, theta: np.ndarray, use: np.ndarray, origin:
                 return x
         improvement = current - new
         x, r, current = trial, r_trial, new
-        if improvement <= 1e-12 * max(current, 1.0) or np.max(np.abs(length * step)) < 1e-10:
+        tiny = True  # every component of the step under 1e-10 (a NaN is not)
+        for k in range(N):
+            tiny = tiny and abs(length * step[k]) < 1e-10
+        if improvement <= 1e-12 * max(current, 1.0) or tiny:
             break
     return x
 
 
 @njit(cache=True, nogil=True)
 def _inliers(times: np.ndarray, theta: np.ndarray, p: np.ndarray, v: float, gate: float) -> np.ndarray:
-    return np.abs(_residuals(times, theta, p, v)) <= gate
+    r = _residuals(times, theta, p, v)
+    out = np.empty(times.size, dtype=np.bool_)
+    for i in range(times.size):
+        out[i] = abs(r[i]) <= gate
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _any(flags: np.ndarray) -> bool:
+    """Whether any flag is set (``flags.any()``, written out: the generic reduction compiles slowly)."""
+    for i in range(flags.size):
+        if flags[i]:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _equal(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two flag arrays of one size are equal (``np.array_equal``)."""
+    for i in range(a.size):
+        if a[i] != b[i]:
+            return False
+    return True
 
 
 @njit(cache=True, nogil=True)
@@ -144,19 +182,23 @@ def solve(times: np.ndarray, theta: np.ndarray, origin: np.ndarray, sigma: np.nd
     """(estimate, covariance 3x3, final inliers) of the MAP estimate of (C/A time s, C/A distance m, in-plane offset
     rad) from the measurements (``times`` s, in-plane angles ``theta`` rad), the prior (``origin``, one-sigmas
     ``sigma``; 0: held) and the start (the best grid candidate)."""
-    free = sigma > 0
-    s = np.where(free, sigma, 1.0)
-    x = np.where(free, (start - origin) / s, 0.0)
+    free = np.empty(N, dtype=np.bool_)
+    s = np.empty(N)
+    x = np.empty(N)
+    for k in range(N):
+        free[k] = sigma[k] > 0
+        s[k] = sigma[k] if free[k] else 1.0
+        x[k] = (start[k] - origin[k]) / s[k] if free[k] else 0.0
     for gate in (cap_rad, tight_rad):
         inliers = np.zeros(times.size, dtype=np.bool_)
         for _ in range(ROUNDS):
-            new = _inliers(times, theta, origin + x * s, speed_m_s, gate)
-            if not new.any() or np.array_equal(new, inliers):
+            new = _inliers(times, theta, _point(origin, x, s), speed_m_s, gate)
+            if not _any(new) or _equal(new, inliers):
                 break
             inliers = new
             x = _gauss_newton(times, theta, inliers, origin, s, free, speed_m_s, angle_noise_rad, x, max_iterations)
     # the information is that of the measurements the final estimate explains (none: the prior alone)
-    p = origin + x * s
+    p = _point(origin, x, s)
     inliers = _inliers(times, theta, p, speed_m_s, tight_rad)
     a, _ = _normal_equations(times, p, speed_m_s, s, np.zeros(times.size), inliers)
     w = angle_noise_rad * angle_noise_rad
