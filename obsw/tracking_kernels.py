@@ -7,6 +7,8 @@ attitude ``[los, n, los x n] triad^T`` of the straight-line flyby of ``obsw.traj
 of the commanded matrix. They were dozens of numpy calls on 3-vectors and 3x3 matrices, each mostly interpreter
 overhead; here they are plain loops in double precision without fast-math, compiled once and cached next to this
 file. A trajectory comes as ``geometry``: ``[t_ca (OBT s), d (m), v (m/s), e_ca (3), e_v (3)]``.
+Element-wise array expressions are written as loops (Numba compiles each generic array operation anew in every
+cached kernel), the same operations in the same order.
 """
 
 from __future__ import annotations
@@ -47,9 +49,15 @@ def input_at(t_k: float, y_k: np.ndarray, slope: np.ndarray, limit_s: float,
     ``limit_s`` after ``t_k``."""
     # against the knot t_k + limit_s as propagate() computes it: t - t_k < limit_s can round the other way at the
     # knot itself, and the held piece would go on sloping for a whole period
+    y, rate = np.empty(3), np.empty(3)
     if t < t_k + limit_s:
-        return y_k + slope * (t - t_k), slope.copy()
-    return y_k + slope * limit_s, np.zeros(3)
+        h = t - t_k
+        for j in range(3):
+            y[j], rate[j] = y_k[j] + slope[j] * h, slope[j]
+        return y, rate
+    for j in range(3):
+        y[j], rate[j] = y_k[j] + slope[j] * limit_s, 0.0
+    return y, rate
 
 
 @njit(cache=True, nogil=True)
@@ -60,8 +68,9 @@ def propagate(c: np.ndarray, i: np.ndarray, t0: float, dt_s: float, has_line: bo
     ``z' = M z``. One array out, since each array returned costs more than the arithmetic."""
     out = np.empty(6)
     if not has_line:
-        out[:3] = c + i * dt_s  # no measurement yet: nothing to correct against
-        out[3:] = i
+        for j in range(3):
+            out[j] = c[j] + i[j] * dt_s  # no measurement yet: nothing to correct against
+            out[3 + j] = i[j]
         return out
     t1 = t0 + dt_s
     knot = t_k + limit_s
@@ -79,8 +88,8 @@ def propagate(c: np.ndarray, i: np.ndarray, t0: float, dt_s: float, has_line: bo
             z0, z1 = y_a[j] - c_out[j], i_out[j] - rate[j]
             c_out[j] = y_a[j] + rate[j] * (b - a) - (m00 * z0 + m01 * z1)
             i_out[j] = (m10 * z0 + m11 * z1) + rate[j]
-    out[:3] = c_out
-    out[3:] = i_out
+    for j in range(3):
+        out[j], out[3 + j] = c_out[j], i_out[j]
     return out
 
 
@@ -91,7 +100,10 @@ def correction_rate(c: np.ndarray, i: np.ndarray, kp: float, has_line: bool, t_k
     if not has_line:
         return i.copy()
     y, _ = input_at(t_k, y_k, slope, limit_s, t)
-    return i + kp * (y - c)
+    out = np.empty(3)
+    for j in range(3):
+        out[j] = i[j] + kp * (y[j] - c[j])
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -171,7 +183,9 @@ def quaternion_of_matrix(m: np.ndarray) -> tuple[np.ndarray, bool]:
         q[2] = m10 - m01
         q[3] = 1 + trace
     norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    return q / norm, True
+    for j in range(4):
+        q[j] = q[j] / norm
+    return q, True
 
 
 @njit(cache=True, nogil=True)
@@ -251,21 +265,26 @@ def reference(c: np.ndarray, i: np.ndarray, kp: float, ki: float, t: float, has_
     rate = v * d / (d * d + (v * tau) ** 2)
     accel = -2.0 * v**3 * d * tau / (d * d + (v * tau) ** 2) ** 2
     c_dot = correction_rate(c, i, kp, has_line, t_k, y_k, slope, limit_s, t)
+    c_ddot = np.zeros(3)
     if has_line:
         y, y_dot = input_at(t_k, y_k, slope, limit_s, t)
-        c_ddot = ki * (y - c) + kp * (y_dot - c_dot)
-    else:
-        c_ddot = np.zeros(3)
+        for j in range(3):
+            c_ddot[j] = ki * (y[j] - c[j]) + kp * (y_dot[j] - c_dot[j])
     jac = left_jacobian(c)
     omega_c = matvec(jac, c_dot, False)  # angular velocity of R(c), inertial
-    omega_in = omega_c + rate * n_c
     # d/dt omega_in, neglecting J' c' (second order in the small correction)
-    alpha_in = matvec(jac, c_ddot, False) + rate * cross(omega_c, n_c) + accel * n_c
+    alpha_c, turn = matvec(jac, c_ddot, False), cross(omega_c, n_c)
+    omega_in, alpha_in = np.empty(3), np.empty(3)
+    for j in range(3):
+        omega_in[j] = omega_c[j] + rate * n_c[j]
+        alpha_in[j] = alpha_c[j] + rate * turn[j] + accel * n_c[j]
     q, valid = quaternion_of_matrix(r_des)
+    body_rate, body_accel, los_c = matvec(r_des, omega_in, True), matvec(r_des, alpha_in, True), matvec(r_c, los, False)
     out = np.empty(22)
-    out[:4] = q
-    out[4:7] = matvec(r_des, omega_in, True)
-    out[7:10] = matvec(r_des, alpha_in, True)
-    out[10:13] = matvec(r_c, los, False)
-    out[13:] = r_des.ravel()
+    for j in range(4):
+        out[j] = q[j]
+    for j in range(3):
+        out[4 + j], out[7 + j], out[10 + j] = body_rate[j], body_accel[j], los_c[j]
+        for k in range(3):
+            out[13 + 3 * j + k] = r_des[j, k]
     return out, valid
