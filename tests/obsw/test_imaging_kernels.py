@@ -60,3 +60,15 @@ def test_region_values_sums_peaks_and_histograms(seed: int) -> None:
         assert sums[q] == float(mine.astype(np.int64).sum()) and peak[q] == int(mine.max())
     for r, q in enumerate(described):
         assert np.array_equal(hist[r], np.bincount(vals[comp == q], minlength=256))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-(2**40), 2**40), max_size=300), st.booleans())
+def test_the_outlier_filters_sorts_give_numpys_order(values: list[int], short: bool) -> None:
+    """_merge_sorted returns numpy's sorted copy (the input untouched); _insertion_sort sorts in place as numpy does."""
+    a = np.array(values[:9] if short else values, dtype=np.int64)
+    before = a.copy()
+    assert k._merge_sorted(a).tolist() == np.sort(before).tolist()
+    assert a.tolist() == before.tolist()
+    k._insertion_sort(a)
+    assert a.tolist() == np.sort(before).tolist()
