@@ -26,13 +26,25 @@ _WARM_UPS = (
 _warming: list[subprocess.Popen[bytes]] = []
 
 
+def _env() -> dict[str, str]:
+    """This environment with the checkout first on the path (the kernels' caches are next to its sources)."""
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
+
+
 def pytest_sessionstart(session: pytest.Session) -> None:
     """Start the kernels' compilation in the background; a test that needs a kernel sooner compiles it itself, and
     Numba writes each cache file whole (a temporary file moved into place), so either process's copy serves."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))}
     for code in _WARM_UPS:
-        _warming.append(subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=env,
+        _warming.append(subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, env=_env(),
                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+
+
+def wait_for_kernels(deadline_s: float = 600.0) -> None:
+    """Return once every node's kernels are compiled and cached: the background compilations waited for (a generous
+    deadline), one that failed run again in the foreground, so that its error is shown."""
+    for proc, code in zip(_warming, _WARM_UPS):
+        if proc.wait(timeout=deadline_s) != 0:
+            subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=_env(), check=True, timeout=deadline_s)
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:

@@ -9,20 +9,17 @@ from pathlib import Path
 
 import pytest
 
+from tests.conftest import wait_for_kernels
+
 DATA = Path(__file__).parent / "data"
 
 
 @pytest.fixture(scope="session", autouse=True)
 def compiled_kernels() -> None:
-    """Compile the nodes' kernels once, before any node process needs them: the first run after an install pays
-    about 50 s for it (announced by ``flyby run``), which would otherwise eat into these tests' time windows."""
-    from obsw import kernels
-    from universe import attitude_rk4
-    from universe.camera import warm_up
-
-    warm_up()
-    attitude_rk4.warm_up()
-    kernels.warm_up()
+    """The nodes' kernels compiled before any node process needs them (the session's background compilation,
+    ``tests/conftest.py``): the first run after an install pays about a minute for it (announced by ``flyby run``),
+    which would otherwise eat into these tests' time windows."""
+    wait_for_kernels()
 
 
 def flyby(*args: str, timeout: float = 240.0, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
