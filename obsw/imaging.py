@@ -131,7 +131,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     ``dimorphos_max_separation_didymos_diameters`` of Didymos, no ejecta are trimmed, no phase correction).
     FrameError when the frame is not a raw frame of this camera.
     """
-    check_frame(frame, camera.resolution_px, camera.bit_depth)
+    check_frame(frame, camera.resolution_px, camera.bit_depth, values=False)  # the filtering reads the values
     n = cfg.binned_size_px
     # FPGA: defect correction, binning, 8-bit compression and binarisation
     image = filtered(frame, cfg, camera.bit_depth, bad_pixels)

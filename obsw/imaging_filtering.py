@@ -127,9 +127,9 @@ class Filtered:
     outliers: np.ndarray  # flat indices (full resolution) of the pixels the outlier filter replaced
 
 
-def check_frame(frame: np.ndarray, side: int, bit_depth: int) -> None:
+def check_frame(frame: np.ndarray, side: int, bit_depth: int, values: bool = True) -> None:
     """Raise FrameError unless ``frame`` is a side x side array of unsigned integers of at least ``bit_depth`` bits
-    whose values fit that depth."""
+    whose values fit that depth (``values``: False leaves the values to ``filtered``, which reads them anyway)."""
     if not isinstance(frame, np.ndarray):
         raise FrameError(f"frame must be a numpy array, got {type(frame).__name__}")
     if frame.size == 0:
@@ -144,9 +144,13 @@ def check_frame(frame: np.ndarray, side: int, bit_depth: int) -> None:
     if frame.shape[0] != side:
         raise FrameError(f"frame side {frame.shape[0]} px is not the camera's {side} px")
     vmax = (1 << bit_depth) - 1
-    # a value beyond the bit depth would wrap the block sums: refuse it rather than alias it
-    if int(frame.max()) > vmax or (frame.dtype.kind == "i" and int(frame.min()) < 0):
-        raise FrameError(f"frame pixel values exceed the {bit_depth}-bit range 0..{vmax}")
+    # a value beyond the bit depth would alias another: refuse it (a uint16 frame's values: ``filtered`` refuses them)
+    if (values or frame.dtype != np.uint16) and (
+            int(frame.max()) > vmax or (frame.dtype.kind == "i" and int(frame.min()) < 0)):
+        raise FrameError(_RANGE.format(bit_depth=bit_depth, vmax=vmax))
+
+
+_RANGE = "frame pixel values exceed the {bit_depth}-bit range 0..{vmax}"
 
 
 def _block_sums_and_maxima(frame: np.ndarray, n: int, acc: type) -> tuple[np.ndarray, np.ndarray]:
@@ -210,11 +214,15 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
     f = side // n
     area = f * f
     vmax = (1 << bit_depth) - 1
+    if area * vmax > np.iinfo(np.int32).max:
+        raise FrameError(f"{f} x {f} blocks of {bit_depth}-bit pixels overflow the binning's 32-bit sums: "
+                         f"binned_size_px {n} is too small for a {side} px frame")
     pixels = frame if frame.dtype == np.uint16 else frame.astype(np.uint16)
     sums, maxima = _scratch(n)
     binned_image = np.empty((n, n), dtype=np.uint16)
     hist = np.zeros(vmax + 1, dtype=np.int64)
-    kernels.block_statistics(pixels, f, sums, maxima, binned_image, hist)
+    if kernels.block_statistics(pixels, f, sums, maxima, binned_image, hist) > vmax:
+        raise FrameError(_RANGE.format(bit_depth=bit_depth, vmax=vmax))
     flat_sums = sums.reshape(-1)
     flat_binned = binned_image.reshape(-1)
     flat_frame = pixels.reshape(-1)
@@ -252,11 +260,12 @@ _SCRATCH = threading.local()
 
 
 def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The block sums (int64) and maxima (uint16) buffers of an n x n binning, allocated once per thread: the FPGA's
-    working memory (fresh 2.5 MB every frame would cost more page faults than the binning itself)."""
+    """The block sums (int32: a block of up to 181 x 181 16-bit pixels) and maxima (uint16) buffers of an n x n
+    binning, allocated once per thread: the FPGA's working memory (fresh megabytes every frame would cost more page
+    faults than the binning itself)."""
     buf = getattr(_SCRATCH, "blocks", None)
     if buf is None or buf[0].shape != (n, n):
-        buf = (np.empty((n, n), dtype=np.int64), np.empty((n, n), dtype=np.uint16))
+        buf = (np.empty((n, n), dtype=np.int32), np.empty((n, n), dtype=np.uint16))
         _SCRATCH.blocks = buf
     return buf
 

@@ -16,12 +16,15 @@ from numba import njit
 
 @njit(cache=True, nogil=True)
 def block_statistics(frame: np.ndarray, f: int, sums: np.ndarray, maxima: np.ndarray, binned: np.ndarray,
-                     hist: np.ndarray) -> None:
-    """Fill ``sums``, ``maxima`` and ``binned`` (n, n) with the sum, the largest value and the rounded mean
-    floor(sum / f^2 + 1/2) of each f x f block of ``frame`` (n f, n f), and count each rounded mean in ``hist``."""
+                     hist: np.ndarray) -> int:
+    """Fill ``sums`` (int32), ``maxima`` and ``binned`` (n, n) with the sum, the largest value and the rounded mean
+    floor(sum / f^2 + 1/2) of each f x f block of ``frame`` (n f, n f), and count each rounded mean in ``hist``;
+    return the frame's largest value. A value beyond ``hist`` (a frame deeper than its bit depth) leaves ``hist``
+    uncounted: the caller refuses the frame on the returned value (the frame is read once, its check included)."""
     n = sums.shape[0]
     area = f * f
     half = area // 2
+    peak = np.int64(0)
     if f == 2:
         # the 1024 -> 512 case, unrolled: two rows at a time, no loop over the block
         for bi in range(n):
@@ -36,8 +39,10 @@ def block_statistics(frame: np.ndarray, f: int, sums: np.ndarray, maxima: np.nda
                 c = np.int64(r1[2 * bj])
                 d = np.int64(r1[2 * bj + 1])
                 s = a + b + c + d
+                m = max(max(a, b), max(c, d))
                 s_row[bj] = s
-                m_row[bj] = max(max(a, b), max(c, d))
+                m_row[bj] = m
+                peak = max(peak, m)
                 b_row[bj] = (s + 2) >> 2
     else:
         for bi in range(n):
@@ -52,11 +57,15 @@ def block_statistics(frame: np.ndarray, f: int, sums: np.ndarray, maxima: np.nda
                         m = max(m, v)
                 sums[bi, bj] = s
                 maxima[bi, bj] = m
+                peak = max(peak, m)
                 binned[bi, bj] = (s + half) // area
+    if peak >= hist.size:
+        return peak
     for bi in range(n):
         b_row = binned[bi]
         for bj in range(n):
             hist[b_row[bj]] += 1
+    return peak
 
 
 @njit(cache=True, nogil=True)
@@ -75,9 +84,16 @@ def standing_out(sums: np.ndarray, maxima: np.ndarray, area: int, margin: float,
     for i in range(n):
         s_row = sums[i]
         m_row = maxima[i]
+        # a row's largest excess first, a loop without branches the compiler vectorises: most rows have no block
+        # above the limit and are passed over
+        top = np.int64(0)
+        for j in range(n):
+            top = max(top, area * np.int64(m_row[j]) - np.int64(s_row[j]))
+        if top <= limit:
+            continue
         for j in range(n):
             m = np.int64(m_row[j])
-            s = s_row[j]
+            s = np.int64(s_row[j])
             excess = area * m - s
             if excess > limit and excess > base + slope * max(s - m - floor, 0.0):
                 out[k] = i * n + j
@@ -379,7 +395,7 @@ def surface_count(values8: np.ndarray, n: int, threshold_dn8: int) -> int:
 def warm_up() -> None:
     """Compile (or load from the cache) the kernels now, for the frame types the camera gives."""
     frame = np.zeros((4, 4), np.uint16)
-    sums = np.zeros((2, 2), np.int64)
+    sums = np.zeros((2, 2), np.int32)
     maxima = np.zeros((2, 2), np.uint16)
     hist = np.zeros(4096, np.int64)
     block_statistics(frame, 2, sums, maxima, np.zeros((2, 2), np.uint16), hist)

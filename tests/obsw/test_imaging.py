@@ -339,6 +339,7 @@ def test_noise_only_frame_has_no_body() -> None:
         (np.zeros((1024, 1024), dtype=np.float32), "integers"),
         (np.zeros((1024, 1024), dtype=np.uint8), "8-bit"),
         (np.full((1024, 1024), 4096, dtype=np.uint16), "12-bit"),
+        (np.pad(np.full((1, 1), 65535, dtype=np.uint16), ((1023, 0), (0, 1023))), "12-bit"),
         (np.full((1024, 1024), -1, dtype=np.int32), "12-bit"),
     ],
 )

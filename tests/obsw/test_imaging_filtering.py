@@ -21,7 +21,7 @@ from tests.obsw.opencv_reference import (
 
 from obsw.config import CameraKnowledge, ImagingConfig
 from obsw.imaging import BadPixelMap, process_frame
-from obsw.imaging_filtering import filtered
+from obsw.imaging_filtering import FrameError, filtered
 
 CFG = ImagingConfig()
 
@@ -67,6 +67,14 @@ def test_2048_frames_are_filtered_in_4x4_blocks_like_opencv() -> None:
     means = cv2.resize(ref.corrected.astype(np.float32), (512, 512), interpolation=cv2.INTER_AREA)
     np.testing.assert_array_equal(ours.binned, np.floor(means.astype(np.float64) + 0.5))
     assert np.abs(ours.binned.astype(np.int64) - ref.binned).max() <= 1
+
+
+def test_blocks_too_large_for_the_binning_sums_raise_frame_error() -> None:
+    """A binning whose f x f blocks of full-scale pixels would overflow the 32-bit block sums is refused, naming the
+    binned size, before any sum is taken."""
+    frame = np.zeros((1024, 1024), dtype=np.uint16)
+    with pytest.raises(FrameError, match="binned_size_px 4 is too small"):
+        filtered(frame, ImagingConfig(binned_size_px=4), 16)
 
 
 @settings(max_examples=60, deadline=None)
