@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from obsw import imaging_kernels as kernels
 from obsw.config import ImagingConfig
 from obsw.imaging_filtering import MAD_TO_SIGMA, Filtered, histogram_median_mad, lut
 
@@ -62,7 +63,7 @@ def binarisation(hist8: np.ndarray, cfg: ImagingConfig) -> Binarisation:
     median, mad = histogram_median_mad(h)
     sigma = MAD_TO_SIGMA * mad
     floor = median + max(math.ceil(cfg.noise_k_sigma * sigma), cfg.min_threshold_margin_dn8)
-    otsu = otsu_threshold(h)
+    otsu = int(kernels.otsu(h))  # otsu_threshold's operations, compiled
     return Binarisation(
         threshold_dn8=int(max(otsu, floor)) if cfg.otsu_threshold else int(floor), otsu_dn8=otsu, background_dn8=median, noise_sigma_dn8=float(sigma)
     )
@@ -71,7 +72,7 @@ def binarisation(hist8: np.ndarray, cfg: ImagingConfig) -> Binarisation:
 def binarised(image: Filtered, cfg: ImagingConfig, bit_depth: int) -> tuple[np.ndarray, Binarisation]:
     """The foreground mask of a filtered frame's binned image and the threshold it was cut at."""
     table = lut(cfg, bit_depth)
-    hist8 = np.bincount(table, weights=image.hist, minlength=256)
+    hist8 = kernels.histogram_8bit(table, image.hist)
     thr = binarisation(hist8, cfg)
     # lut[v] > T  <=>  v >= first raw value mapped above T (the table is monotonic): threshold the raw image
     first_above = int(np.searchsorted(table, thr.threshold_dn8, side="right"))

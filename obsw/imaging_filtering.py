@@ -189,16 +189,10 @@ def _rounded_mean(sums: np.ndarray, area: int) -> np.ndarray:
 
 def histogram_median_mad(hist: np.ndarray) -> tuple[int, int]:
     """(lower median, lower median absolute deviation) of the values a histogram counts (bin i = value i)."""
-    h = np.asarray(hist, dtype=np.int64)
-    total = int(h.sum())
-    if total <= 0:
+    median, mad = kernels.median_mad(np.asarray(hist, dtype=np.int64))
+    if median < 0:
         raise FrameError("empty histogram: the frame has no pixels")
-    half = (total + 1) // 2
-    median = int(np.searchsorted(np.cumsum(h), half))
-    levels = np.arange(h.size)
-    dev_hist = np.bincount(np.abs(levels - median), weights=h, minlength=h.size)
-    mad = int(np.searchsorted(np.cumsum(dev_hist), half))
-    return median, mad
+    return int(median), int(mad)
 
 
 def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixelMap | None = None) -> Filtered:
@@ -234,7 +228,7 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
         bad_pixels, bad_values = bad.pixels, bad.replacement(flat_frame)
         delta = bad_values - flat_frame[bad_pixels].astype(np.int64)
         bad_blocks, inverse = bad.blocks(f)
-        _correct_blocks(flat_sums, flat_binned, hist, bad_blocks, delta, area, inverse)
+        kernels.add_to_blocks(flat_sums, flat_binned, hist, bad_blocks[inverse], delta, area)
         replaced = int(bad.pixels.size)
     background, mad = histogram_median_mad(hist)
     sigma = max(f * MAD_TO_SIGMA * mad, 1.0)
@@ -245,13 +239,13 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
         blocks = kernels.standing_out(sums, maxima, area, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
                                       float(background))
         if bad_blocks.size:
-            blocks = np.union1d(blocks, bad_blocks)
+            blocks = kernels.union_sorted(blocks, bad_blocks)
         if blocks.size:
             outliers, block_delta, changed = kernels.outliers(
-                pixels, blocks.astype(np.int64, copy=False), f, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
+                pixels, blocks, f, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
                 int(background), bad_pixels, bad_values)
             if changed.size:
-                _correct_blocks(flat_sums, flat_binned, hist, changed, block_delta, area)
+                kernels.add_to_blocks(flat_sums, flat_binned, hist, changed, block_delta, area)
     return Filtered(binned=binned_image, hist=hist, background_dn=background, noise_sigma_dn=float(sigma),
                     bad_pixels=replaced, outliers=outliers)
 
@@ -268,20 +262,6 @@ def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
         buf = (np.empty((n, n), dtype=np.int32), np.empty((n, n), dtype=np.uint16))
         _SCRATCH.blocks = buf
     return buf
-
-
-def _correct_blocks(flat_sums: np.ndarray, flat_binned: np.ndarray, hist: np.ndarray, blocks: np.ndarray,
-                    delta: np.ndarray, area: int, inverse: np.ndarray | None = None) -> None:
-    """Add ``delta`` to the sums of ``blocks`` and update their rounded means and the histogram; each correction
-    swaps a pixel's value for another of the same bit depth, so sums stay in range. With ``inverse``, ``blocks``
-    are distinct and ``delta[k]`` adds to ``blocks[inverse[k]]``; without, repeated blocks add up."""
-    if inverse is None:
-        blocks, inverse = np.unique(blocks, return_inverse=True)
-    flat_sums[blocks] += np.bincount(inverse, weights=delta, minlength=blocks.size).astype(np.int64)
-    new = (flat_sums[blocks] + area // 2) // area
-    np.subtract.at(hist, flat_binned[blocks], 1)
-    np.add.at(hist, new, 1)
-    flat_binned[blocks] = new
 
 
 def compression_lut(cfg: ImagingConfig, bit_depth: int) -> np.ndarray:

@@ -101,6 +101,118 @@ def standing_out(sums: np.ndarray, maxima: np.ndarray, area: int, margin: float,
     return out[:k]
 
 
+@njit(cache=True, nogil=True)
+def median_mad(hist: np.ndarray) -> tuple[int, int]:
+    """(lower median, lower median absolute deviation) of the values a histogram counts (bin i = value i); (-1, -1)
+    for an empty histogram."""
+    total = np.int64(0)
+    for v in range(hist.size):
+        total += hist[v]
+    if total <= 0:
+        return -1, -1
+    half = (total + 1) // 2
+    seen = np.int64(0)
+    median = hist.size - 1
+    for v in range(hist.size):
+        seen += hist[v]
+        if seen >= half:
+            median = v
+            break
+    # the values at distance d from the median, d growing: the bins on either side of it
+    seen = np.int64(0)
+    mad = hist.size - 1
+    for d in range(hist.size):
+        if median - d >= 0:
+            seen += hist[median - d]
+        if d > 0 and median + d < hist.size:
+            seen += hist[median + d]
+        if seen >= half:
+            mad = d
+            break
+    return median, mad
+
+
+@njit(cache=True, nogil=True)
+def add_to_blocks(sums: np.ndarray, binned: np.ndarray, hist: np.ndarray, blocks: np.ndarray, delta: np.ndarray,
+                  area: int) -> None:
+    """Add ``delta[k]`` to the sum of block ``blocks[k]`` (flat ``sums``; a block may repeat), then set each changed
+    block's rounded mean in the flat ``binned`` and move its count in ``hist``."""
+    half = area // 2
+    for k in range(blocks.size):
+        sums[blocks[k]] += delta[k]
+    for k in range(blocks.size):
+        b = blocks[k]
+        new = (np.int64(sums[b]) + half) // area
+        old = np.int64(binned[b])
+        if new != old:  # a repeated block is updated at its first entry
+            hist[old] -= 1
+            hist[new] += 1
+            binned[b] = new
+
+
+@njit(cache=True, nogil=True)
+def union_sorted(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The sorted union of two sorted arrays of distinct integers."""
+    out = np.empty(a.size + b.size, dtype=np.int64)
+    i = j = k = 0
+    while i < a.size or j < b.size:
+        if j >= b.size or (i < a.size and a[i] < b[j]):
+            out[k] = a[i]
+            i += 1
+        elif i >= a.size or b[j] < a[i]:
+            out[k] = b[j]
+            j += 1
+        else:
+            out[k] = a[i]
+            i += 1
+            j += 1
+        k += 1
+    return out[:k]
+
+
+@njit(cache=True, nogil=True)
+def histogram_8bit(table: np.ndarray, hist: np.ndarray) -> np.ndarray:
+    """The 8-bit histogram of an image whose raw histogram is ``hist``, through the compression ``table``."""
+    out = np.zeros(256, dtype=np.int64)
+    for v in range(hist.size):
+        out[table[v]] += hist[v]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def otsu(hist: np.ndarray) -> int:
+    """Otsu's threshold of an integer histogram (``imaging_binarisation.otsu_threshold`` defines it): the same
+    double-precision operations in the same order as its array form (cumulative sums run in order)."""
+    total = 0.0
+    for v in range(hist.size):
+        total += float(hist[v])  # integer counts: exact in any order
+    if total <= 0.0:
+        return 0
+    eps = float(np.finfo(np.float32).eps)
+    q1 = 0.0
+    m1 = 0.0
+    mu = 0.0
+    for v in range(hist.size):
+        mu += (hist[v] / total) * float(v)
+    best = -1.0
+    arg = 0
+    found = False
+    for v in range(hist.size):
+        p = hist[v] / total
+        q1 += p
+        m1 += p * float(v)
+        q2 = 1.0 - q1
+        sigma = -1.0
+        if min(q1, q2) >= eps and max(q1, q2) <= 1.0 - eps:
+            found = True
+            d = m1 / q1 - (mu - m1) / q2
+            sigma = q1 * q2 * (d * d)
+        if sigma > best:
+            best = sigma
+            arg = v
+    return arg if found else 0
+
+
 # The two sorts below are written out: Numba's generic quicksort behind ``ndarray.sort`` and ``np.sort`` took a
 # seventh of the flight software's compile time; integers sort to the same order by any method.
 @njit(cache=True, nogil=True)
@@ -407,3 +519,8 @@ def warm_up() -> None:
     region_values(one, np.zeros(1, np.uint8), 1, one, 1)
     top_light(np.zeros((1, 256), np.int64), 1, 0)
     surface_count(np.zeros(1, np.uint8), 1, 0)
+    median_mad(hist)
+    add_to_blocks(sums.reshape(-1), maxima.reshape(-1), hist, one, one, 4)
+    union_sorted(one, empty)
+    table = np.zeros(4096, np.uint8)
+    otsu(histogram_8bit(table, hist))

@@ -22,6 +22,7 @@ from tests.obsw.opencv_reference import (
 )
 
 from contracts.messages import CentroidMeasurement
+from obsw import imaging_kernels as kernels
 from obsw.config import CameraKnowledge, ImagingConfig, ObswConfig, TargetKnowledge
 from obsw.imaging import (
     Blob,
@@ -132,10 +133,12 @@ def _between_class_variance(hist: np.ndarray, t: int) -> float:
     image=hnp.arrays(np.uint8, st.tuples(st.integers(1, 40), st.integers(1, 40)), elements=st.integers(0, 255))
 )
 def test_otsu_threshold_matches_opencv(image: np.ndarray) -> None:
-    """Our Otsu threshold reaches OpenCV's maximum between-class variance (equal thresholds up to ties)."""
+    """Our Otsu threshold, in its array form and compiled, reaches OpenCV's maximum between-class variance (equal
+    thresholds up to ties)."""
     cv_t, _ = cv2.threshold(image, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
     hist = np.bincount(image.ravel(), minlength=256)
     ours = otsu_threshold(hist)
+    assert kernels.otsu(hist) == ours  # the compiled form the chain runs: the same operations, the same threshold
     assert _between_class_variance(hist, ours) == pytest.approx(_between_class_variance(hist, int(cv_t)), rel=1e-9)
 
 

@@ -72,3 +72,50 @@ def test_the_outlier_filters_sorts_give_numpys_order(values: list[int], short: b
     assert a.tolist() == before.tolist()
     k._insertion_sort(a)
     assert a.tolist() == np.sort(before).tolist()
+
+
+@settings(max_examples=200, deadline=None)
+@given(seeds)
+def test_add_to_blocks_keeps_sums_means_and_histogram_consistent(seed: int) -> None:
+    """add_to_blocks, blocks repeated in any order: each block's sum gains its deltas, its rounded mean is
+    floor(sum / area + 1/2) and the histogram counts the means, as numpy recomputes them from scratch."""
+    rng = np.random.default_rng(seed)
+    area = int(rng.choice([4, 9, 16]))
+    sums = rng.integers(3000, 4095 * area - 3000, 50).astype(np.int32)  # 30 deltas of 100 at most keep it in range
+    binned = ((sums.astype(np.int64) + area // 2) // area).astype(np.uint16)
+    hist = np.bincount(binned, minlength=4096).astype(np.int64)
+    blocks = rng.integers(0, 50, int(rng.integers(0, 30))).astype(np.int64)
+    delta = rng.integers(-100, 101, blocks.size).astype(np.int64)
+    want = sums.astype(np.int64)
+    np.add.at(want, blocks, delta)
+    k.add_to_blocks(sums, binned, hist, blocks, delta, area)
+    means = (want + area // 2) // area
+    np.testing.assert_array_equal(sums, want)
+    np.testing.assert_array_equal(binned, means)
+    np.testing.assert_array_equal(hist, np.bincount(means, minlength=4096))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(0, 60), unique=True), st.lists(st.integers(0, 60), unique=True))
+def test_union_sorted_is_numpys_union(a: list[int], b: list[int]) -> None:
+    """union_sorted of two sorted sets of distinct integers: np.union1d."""
+    x, y = np.array(sorted(a), dtype=np.int64), np.array(sorted(b), dtype=np.int64)
+    np.testing.assert_array_equal(k.union_sorted(x, y), np.union1d(x, y))
+
+
+@settings(max_examples=200, deadline=None)
+@given(seeds)
+def test_median_mad_and_8bit_histogram_are_the_sample_statistics(seed: int) -> None:
+    """median_mad of a histogram: the lower median and lower median absolute deviation of the values it counts
+    (numpy's partition); histogram_8bit: numpy's bincount of the values through the table."""
+    rng = np.random.default_rng(seed)
+    values = rng.integers(0, int(rng.integers(1, 4096)), int(rng.integers(1, 2000)))
+    if rng.random() < 0.3:
+        values[: values.size // 2] = values[0]  # a flat background: most values equal
+    hist = np.bincount(values, minlength=4096).astype(np.int64)
+    m = (values.size - 1) // 2
+    median = int(np.partition(values, m)[m])
+    assert k.median_mad(hist) == (median, int(np.partition(np.abs(values - median), m)[m]))
+    assert k.median_mad(np.zeros(16, np.int64)) == (-1, -1)
+    table = np.floor(255.0 * np.sqrt(np.arange(4096) / 4095) + 0.5).astype(np.uint8)
+    np.testing.assert_array_equal(k.histogram_8bit(table, hist), np.bincount(table[values], minlength=256))
