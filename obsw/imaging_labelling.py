@@ -32,12 +32,21 @@ class Components:
     pixel_component: np.ndarray  # component (0-based) of each foreground pixel (N,)
 
 
+def _with_words(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mask as a contiguous boolean array and its rows as 64-bit words (none when the width is not a multiple of
+    eight): ``label_runs``'s arguments."""
+    m = np.ascontiguousarray(mask, dtype=np.bool_)
+    if m.shape[1] % 8 or m.shape[1] == 0:
+        return m, np.zeros((1, 0), dtype=np.uint64)
+    return m, m.view(np.uint64)
+
+
 def connected_components(mask: np.ndarray) -> Components:
     """Return the 8-connected components of a 2-D boolean image with their area, centroid, box and shape."""
     if mask.ndim != 2:
         raise FrameError(f"mask must be 2-D, got shape {mask.shape}")
     (pixel_index, pixel_component, area, sum_col, sum_row, sum_col2, sum_row2, sum_row_col, top, left, right,
-     bottom) = label_runs(np.ascontiguousarray(mask, dtype=np.bool_))
+     bottom) = label_runs(*_with_words(mask))
     cc = sum_col / area
     cr = sum_row / area
     # second central moments from raw moments, each pixel a unit square (variance 1/12 per axis)

@@ -174,6 +174,19 @@ def test_labelling_matches_opencv_full_size(density: float) -> None:
     np.testing.assert_allclose(_ours(mask), _opencv(mask), rtol=0, atol=1e-9)
 
 
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**31), height=st.integers(1, 64), words=st.integers(1, 16), extra=st.sampled_from([0, 3]),
+       density=st.sampled_from([0.002, 0.02, 0.1]))
+def test_labelling_matches_opencv_on_sparse_images(seed: int, height: int, words: int, extra: int,
+                                                   density: float) -> None:
+    """Sparse images, whose empty stretches the labelling passes eight pixels at a time (widths a multiple of eight
+    or not), with runs across the words' edges: the components equal OpenCV's."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((height, 8 * words + extra)) < density
+    mask |= np.roll(mask, 1, axis=1) & (rng.random(mask.shape) < 0.5)  # short runs, some across a word's edge
+    np.testing.assert_allclose(_ours(mask), _opencv(mask), rtol=0, atol=1e-9)
+
+
 def test_labels_are_numbered_in_raster_order() -> None:
     """Components are numbered by their first pixel in raster order (a U shape is one component)."""
     mask = np.zeros((6, 8), dtype=bool)
