@@ -42,6 +42,7 @@ from obsw.imaging_filtering import (
     filtered,
     linear_values,
     lut,
+    working_buffers,
 )
 from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, offset_rad, predict_frame
 from obsw.imaging_identification import Blob, Regions, identify_bodies, phase_corrected
@@ -134,10 +135,11 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     check_frame(frame, camera.resolution_px, camera.bit_depth, values=False)  # the filtering reads the values
     n = cfg.binned_size_px
     # FPGA: defect correction, binning, 8-bit compression and binarisation
-    image = filtered(frame, cfg, camera.bit_depth, bad_pixels)
-    mask, thr = binarised(image, cfg, camera.bit_depth)
+    # the binned image and the mask live in the thread's working buffers: neither outlives this frame's processing
+    image = filtered(frame, cfg, camera.bit_depth, bad_pixels, working=True)
+    mask, thr = binarised(image, cfg, camera.bit_depth, working=True)
     # software: labelling, features, identification
-    components = connected_components(mask)
+    components = connected_components(mask, working_buffers(n)[4:])
     values8 = lut(cfg, camera.bit_depth)[image.binned.reshape(-1)[components.pixel_index]] \
         if components.pixel_index.size else np.zeros(0, dtype=np.uint8)
     regions = Regions(components, values8, n, thr.threshold_dn8, linear8=linear_values(cfg, camera.bit_depth))

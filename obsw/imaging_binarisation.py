@@ -17,7 +17,7 @@ import numpy as np
 
 from obsw import imaging_kernels as kernels
 from obsw.config import ImagingConfig
-from obsw.imaging_filtering import MAD_TO_SIGMA, Filtered, histogram_median_mad, lut
+from obsw.imaging_filtering import MAD_TO_SIGMA, Filtered, histogram_median_mad, lut, working_buffers
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,11 +69,15 @@ def binarisation(hist8: np.ndarray, cfg: ImagingConfig) -> Binarisation:
     )
 
 
-def binarised(image: Filtered, cfg: ImagingConfig, bit_depth: int) -> tuple[np.ndarray, Binarisation]:
-    """The foreground mask of a filtered frame's binned image and the threshold it was cut at."""
+def binarised(image: Filtered, cfg: ImagingConfig, bit_depth: int, working: bool = False
+              ) -> tuple[np.ndarray, Binarisation]:
+    """The foreground mask of a filtered frame's binned image and the threshold it was cut at; ``working``: the mask
+    is the thread's working buffer (``working_buffers``), valid until the thread's next frame."""
     table = lut(cfg, bit_depth)
     hist8 = kernels.histogram_8bit(table, image.hist)
     thr = binarisation(hist8, cfg)
     # lut[v] > T  <=>  v >= first raw value mapped above T (the table is monotonic): threshold the raw image
     first_above = int(np.searchsorted(table, thr.threshold_dn8, side="right"))
-    return image.binned >= first_above, thr
+    out = working_buffers(image.binned.shape[0])[3] if working and image.binned.shape[0] == image.binned.shape[1] \
+        else None
+    return np.greater_equal(image.binned, first_above, out=out), thr

@@ -195,8 +195,11 @@ def histogram_median_mad(hist: np.ndarray) -> tuple[int, int]:
     return int(median), int(mad)
 
 
-def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixelMap | None = None) -> Filtered:
+def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixelMap | None = None,
+             working: bool = False) -> Filtered:
     """Correct the frame's defects and bin it (see the module docstring); the frame must have passed ``check_frame``.
+    ``working``: the binned image is the thread's working buffer (``working_buffers``), valid until the thread's next
+    frame (the chain's use: a fresh half-megabyte image every frame costs as many page faults as it has pages).
 
     The corrections are computed on the blocks that need them and added to the block sums, so the frame is read once
     (``imaging_kernels.block_statistics``) and then only around the defects.
@@ -212,8 +215,9 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
         raise FrameError(f"{f} x {f} blocks of {bit_depth}-bit pixels overflow the binning's 32-bit sums: "
                          f"binned_size_px {n} is too small for a {side} px frame")
     pixels = frame if frame.dtype == np.uint16 else frame.astype(np.uint16)
-    sums, maxima = _scratch(n)
-    binned_image = np.empty((n, n), dtype=np.uint16)
+    sums, maxima, binned_image = working_buffers(n)[:3]
+    if not working:
+        binned_image = np.empty((n, n), dtype=np.uint16)
     hist = np.zeros(vmax + 1, dtype=np.int64)
     if kernels.block_statistics(pixels, f, sums, maxima, binned_image, hist) > vmax:
         raise FrameError(_RANGE.format(bit_depth=bit_depth, vmax=vmax))
@@ -253,13 +257,16 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
 _SCRATCH = threading.local()
 
 
-def _scratch(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The block sums (int32: a block of up to 181 x 181 16-bit pixels) and maxima (uint16) buffers of an n x n
-    binning, allocated once per thread: the FPGA's working memory (fresh megabytes every frame would cost more page
-    faults than the binning itself)."""
+def working_buffers(n: int) -> tuple[np.ndarray, ...]:
+    """The working memory of an n x n binning, allocated once per thread (fresh megabytes every frame would cost more
+    page faults than the work): the block sums (int32: a block of up to 181 x 181 16-bit pixels) and maxima (uint16),
+    the binned image (uint16), the foreground mask (bool), and the foreground pixels' indices and components (int64,
+    n^2 each: ``imaging_labelling.connected_components``)."""
     buf = getattr(_SCRATCH, "blocks", None)
     if buf is None or buf[0].shape != (n, n):
-        buf = (np.empty((n, n), dtype=np.int32), np.empty((n, n), dtype=np.uint16))
+        buf = (np.empty((n, n), dtype=np.int32), np.empty((n, n), dtype=np.uint16),
+               np.empty((n, n), dtype=np.uint16), np.empty((n, n), dtype=np.bool_),
+               np.empty(n * n, dtype=np.int64), np.empty(n * n, dtype=np.int64))
         _SCRATCH.blocks = buf
     return buf
 

@@ -326,10 +326,13 @@ def outliers(frame: np.ndarray, blocks: np.ndarray, f: int, k_sigma: float, rati
 
 
 @njit(cache=True, nogil=True)
-def label_runs(mask: np.ndarray, words: np.ndarray) -> tuple[np.ndarray, ...]:
+def label_runs(mask: np.ndarray, words: np.ndarray, index_out: np.ndarray, component_out: np.ndarray
+               ) -> tuple[np.ndarray, ...]:
     """The 8-connected components of a 2-D boolean image, by runs (maximal horizontal segments of foreground);
     ``words``: the mask's rows as 64-bit words (``mask.view(np.uint64)``, eight pixels each) to pass over empty
-    stretches eight pixels at a time, or an array of no columns when the width is not a multiple of eight.
+    stretches eight pixels at a time, or an array of no columns when the width is not a multiple of eight;
+    ``index_out``, ``component_out``: where to write the pixels' indices and components (the returned arrays are
+    their first elements) when they are large enough, else new arrays.
 
     Returns, components numbered in raster order of their first pixel: the flat index of every foreground pixel in
     raster order and its component; per component its area and raw moments (sums over its pixels, each run added in
@@ -412,8 +415,8 @@ def label_runs(mask: np.ndarray, words: np.ndarray) -> tuple[np.ndarray, ...]:
     left = np.full(k_count, width, np.int64)
     right = np.zeros(k_count, np.int64)
     bottom = np.zeros(k_count, np.int64)
-    pixel_index = np.empty(total, np.int64)
-    pixel_component = np.empty(total, np.int64)
+    pixel_index = index_out[:total] if index_out.size >= total else np.empty(total, np.int64)
+    pixel_component = component_out[:total] if component_out.size >= total else np.empty(total, np.int64)
     p = 0
     for i in range(n):
         q = run_comp[i]
@@ -522,8 +525,8 @@ def warm_up() -> None:
     standing_out(sums, maxima, 4, 1.0, 2.0, 0.0)
     empty = np.zeros(0, np.int64)
     outliers(frame, np.zeros(1, np.int64), 2, 1.0, 2.0, 0, empty, empty)
-    label_runs(np.zeros((2, 2), np.bool_), np.zeros((1, 0), np.uint64))
-    label_runs(np.zeros((2, 8), np.bool_), np.zeros((2, 1), np.uint64))
+    label_runs(np.zeros((2, 2), np.bool_), np.zeros((1, 0), np.uint64), empty, empty)
+    label_runs(np.zeros((2, 8), np.bool_), np.zeros((2, 1), np.uint64), empty, empty)
     one = np.zeros(1, np.int64)
     region_values(one, np.zeros(1, np.uint8), 1, one, 1)
     top_light(np.zeros((1, 256), np.int64), 1, 0)

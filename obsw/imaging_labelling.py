@@ -41,12 +41,18 @@ def _with_words(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return m, m.view(np.uint64)
 
 
-def connected_components(mask: np.ndarray) -> Components:
-    """Return the 8-connected components of a 2-D boolean image with their area, centroid, box and shape."""
+_NONE = np.zeros(0, dtype=np.int64)
+
+
+def connected_components(mask: np.ndarray, working: tuple[np.ndarray, np.ndarray] | None = None) -> Components:
+    """Return the 8-connected components of a 2-D boolean image with their area, centroid, box and shape;
+    ``working``: two int64 buffers of the mask's size (``imaging_filtering.working_buffers``) that the pixels' indices
+    and components are written into, valid until the thread's next frame (else new arrays)."""
     if mask.ndim != 2:
         raise FrameError(f"mask must be 2-D, got shape {mask.shape}")
+    index_out, component_out = working if working is not None else (_NONE, _NONE)
     (pixel_index, pixel_component, area, sum_col, sum_row, sum_col2, sum_row2, sum_row_col, top, left, right,
-     bottom) = label_runs(*_with_words(mask))
+     bottom) = label_runs(*_with_words(mask), index_out, component_out)
     cc = sum_col / area
     cr = sum_row / area
     # second central moments from raw moments, each pixel a unit square (variance 1/12 per axis)

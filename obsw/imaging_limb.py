@@ -24,7 +24,7 @@ radius off a body that is not a sphere).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -175,4 +175,4 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     centre = (fit.col_row[0] - dc, fit.col_row[1] - dr)
     if math.dist(centre, blob.centroid_col_row) <= cfg.limb_fit_max_disagreement_radii * prediction.dimorphos_radius_px:
         return blob, fit.samples
-    return replace(blob, centroid_col_row=centre), fit.samples
+    return blob._replace(centroid_col_row=centre), fit.samples

@@ -23,6 +23,7 @@ from tests.obsw.opencv_reference import (
 
 from contracts.messages import CentroidMeasurement
 from obsw import imaging_kernels as kernels
+from obsw.imaging_filtering import filtered
 from obsw.config import CameraKnowledge, ImagingConfig, ObswConfig, TargetKnowledge
 from obsw.imaging import (
     Blob,
@@ -366,6 +367,19 @@ def test_bad_frames_raise_frame_error(frame: np.ndarray, message: str) -> None:
         process_frame(frame, CFG)
 
 
+def test_working_buffers_do_not_carry_one_frame_into_another() -> None:
+    """The chain bins and binarises in the thread's working buffers: a frame gives the same detections before and
+    after another frame, and a binned image asked for outside the chain is not overwritten by the next frame."""
+    a = synthetic_frame(np.random.default_rng(9), bodies=_pair(500.0, 520.0, 30.0, (80.0, 20.0)))
+    b = synthetic_frame(np.random.default_rng(10), bodies=_pair(300.0, 700.0, 50.0, (-60.0, 40.0)))
+    first = process_frame(a, CFG)
+    kept = filtered(a, CFG, 12)
+    copy = kept.binned.copy()
+    assert process_frame(b, CFG) != first
+    np.testing.assert_array_equal(kept.binned, copy)
+    assert process_frame(a, CFG) == first
+
+
 def test_a_frame_of_another_integer_type_is_taken_by_value() -> None:
     """The same pixel values as int32 or uint32 give the same detections as uint16."""
     frame = synthetic_frame(np.random.default_rng(8), bodies=_pair(500.0, 520.0, 30.0, (80.0, 20.0)))
@@ -610,7 +624,7 @@ def test_a_blob_beside_a_thin_crescent_is_a_piece_of_it() -> None:
     assert identify_bodies([crescent, piece], CFG) == (crescent, None)
     apart = _blob(2, 225.0, 272.5, 2, 2)
     assert identify_bodies([crescent, apart], CFG) == (crescent, apart)
-    round_did = dataclasses.replace(crescent, elongation=1.2)
+    round_did = crescent._replace(elongation=1.2)
     assert identify_bodies([round_did, piece], CFG) == (round_did, piece)
 
 
@@ -623,5 +637,5 @@ def test_last_pair_is_not_remembered_near_closest_approach() -> None:
     big_plume = _blob(1, 205.0, 256.0, 2500, 70)  # a plume core larger than Didymos, where Dimorphos was
     did = _blob(2, 262.0, 256.0, 2100, 60)
     assert identify_bodies([big_plume, did], CFG, prev)[0] is big_plume
-    near = dataclasses.replace(prev, pair=(dataclasses.replace(did_then, bbox_col_row_w_h=(230, 226, 18, 18)), dim_then))
+    near = dataclasses.replace(prev, pair=(did_then._replace(bbox_col_row_w_h=(230, 226, 18, 18)), dim_then))
     assert identify_bodies([big_plume, did], CFG, near)[0] is did

@@ -130,7 +130,7 @@ def test_a_cut_off_its_body_is_moved_to_the_limb_and_one_on_it_is_kept() -> None
         did = frame.truth[0].centre_512
         towards = np.subtract(did, truth) / math.dist(did, truth)
         shift = (0.8 + 0.5 * k / len(cases)) * r * towards
-        wrong = replace(dim, centroid_col_row=tuple(np.add(dim.centroid_col_row, shift)),
+        wrong = dim._replace(centroid_col_row=tuple(np.add(dim.centroid_col_row, shift)),
                         region_centroid_col_row=tuple(np.add(dim.region_centroid_col_row, shift)))
         moved, _ = limb_corrected(wrong, binned, prediction, CFG, 2.9)
         assert moved is not None and math.dist(moved.centroid_col_row, truth) <= 3.0, (k, moved, truth)
@@ -149,7 +149,7 @@ def test_a_cut_beyond_the_body_is_moved_to_the_limb_found_at_the_predicted_place
         towards = np.subtract(did, truth) / math.dist(did, truth)
         r_max = prediction.dimorphos_radius_px * prediction.radius_factor_max + CFG.blur_margin_px
         shift = (r_max + (1.0 + k / len(cases)) * r) * towards
-        wrong = replace(dim, centroid_col_row=tuple(np.add(truth, shift)),
+        wrong = dim._replace(centroid_col_row=tuple(np.add(truth, shift)),
                         region_centroid_col_row=tuple(np.add(truth, shift)))
         assert math.dist(wrong.region_centroid_col_row, truth) > r_max + 2.0  # beyond the body, the fit's circle too
         moved, _ = limb_corrected(wrong, binned, prediction, CFG, 2.9)
@@ -170,7 +170,7 @@ def test_a_cut_off_its_body_is_moved_to_the_limb_up_to_70_deg_of_phase() -> None
         assert math.dist(dim.centroid_col_row, truth) <= 5.0, (k, dim, truth)
         did = frame.truth[0].centre_512
         towards = np.subtract(did, truth) / math.dist(did, truth)
-        wrong = replace(dim, centroid_col_row=tuple(np.add(truth, r * towards)),
+        wrong = dim._replace(centroid_col_row=tuple(np.add(truth, r * towards)),
                         region_centroid_col_row=tuple(np.add(truth, r * towards)))
         moved, samples = limb_corrected(wrong, binned, prediction, CFG, 2.9)
         assert samples > 0 and moved is not None and math.dist(moved.centroid_col_row, truth) <= 4.5, \
@@ -181,7 +181,7 @@ def test_without_a_prediction_or_a_cut_nothing_is_fitted() -> None:
     """A blob not cut out of a larger region, or a frame without a predicted place, is left as it is, unfitted."""
     scene, prediction, frame, det = _transits()[0]
     binned = ((frame.pixels.reshape(512, 2, 512, 2).astype(np.int64).sum(axis=(1, 3)) + 2) >> 2)
-    whole = replace(det.dimorphos, trimmed_from=0)
+    whole = det.dimorphos._replace(trimmed_from=0)
     assert limb_corrected(whole, binned, prediction, CFG, 2.9) == (whole, 0)
     assert limb_corrected(det.dimorphos, binned, replace(prediction, dimorphos_col_row=None), CFG, 2.9) \
         == (det.dimorphos, 0)
