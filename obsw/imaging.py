@@ -46,6 +46,7 @@ from obsw.imaging_filtering import (
 )
 from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, offset_rad, predict_frame
 from obsw.imaging_identification import Blob, Regions, identify_bodies, phase_corrected
+from obsw.imaging_kernels import values_at
 from obsw.imaging_labelling import Components, connected_components
 from obsw.imaging_limb import limb_corrected
 
@@ -140,8 +141,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     mask, thr = binarised(image, cfg, camera.bit_depth, working=True)
     # software: labelling, features, identification
     components = connected_components(mask, working_buffers(n)[4:])
-    values8 = lut(cfg, camera.bit_depth)[image.binned.reshape(-1)[components.pixel_index]] \
-        if components.pixel_index.size else np.zeros(0, dtype=np.uint8)
+    values8 = values_at(image.binned.reshape(-1), components.pixel_index, lut(cfg, camera.bit_depth))
     regions = Regions(components, values8, n, thr.threshold_dn8, linear8=linear_values(cfg, camera.bit_depth))
     # a region smaller than a body (noise, a defect the filter left) is counted, not described
     blobs = regions.blobs(min_area_px=cfg.min_body_area_px)

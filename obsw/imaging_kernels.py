@@ -448,6 +448,16 @@ def label_runs(mask: np.ndarray, words: np.ndarray, index_out: np.ndarray, compo
 
 
 @njit(cache=True, nogil=True)
+def values_at(image: np.ndarray, pixel_index: np.ndarray, table: np.ndarray) -> np.ndarray:
+    """``table[image[pixel_index]]`` (a flat image, a look-up table of uint8), in one pass: the foreground pixels'
+    8-bit values."""
+    out = np.empty(pixel_index.size, np.uint8)
+    for i in range(pixel_index.size):
+        out[i] = table[image[pixel_index[i]]]
+    return out
+
+
+@njit(cache=True, nogil=True)
 def region_values(component: np.ndarray, values8: np.ndarray, k: int, row: np.ndarray, n_rows: int
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Of k regions, from each foreground pixel's region (0-based) and 8-bit value: each region's sum of values and
@@ -529,6 +539,7 @@ def warm_up() -> None:
     label_runs(np.zeros((2, 8), np.bool_), np.zeros((2, 1), np.uint64), empty, empty)
     one = np.zeros(1, np.int64)
     region_values(one, np.zeros(1, np.uint8), 1, one, 1)
+    values_at(np.zeros(4, np.uint16), one, np.zeros(4096, np.uint8))
     top_light(np.zeros((1, 256), np.int64), 1, 0)
     surface_count(np.zeros(1, np.uint8), 1, 0)
     median_mad(hist)

@@ -119,3 +119,14 @@ def test_median_mad_and_8bit_histogram_are_the_sample_statistics(seed: int) -> N
     assert k.median_mad(np.zeros(16, np.int64)) == (-1, -1)
     table = np.floor(255.0 * np.sqrt(np.arange(4096) / 4095) + 0.5).astype(np.uint8)
     np.testing.assert_array_equal(k.histogram_8bit(table, hist), np.bincount(table[values], minlength=256))
+
+
+@settings(max_examples=100, deadline=None)
+@given(seeds)
+def test_values_at_is_numpys_double_gather(seed: int) -> None:
+    """values_at(image, index, table): numpy's table[image[index]]."""
+    rng = np.random.default_rng(seed)
+    image = rng.integers(0, 4096, int(rng.integers(1, 500))).astype(np.uint16)
+    index = rng.integers(0, image.size, int(rng.integers(0, 300))).astype(np.int64)
+    table = rng.integers(0, 256, 4096).astype(np.uint8)
+    np.testing.assert_array_equal(k.values_at(image, index, table), table[image[index]])
