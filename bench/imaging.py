@@ -1,6 +1,7 @@
 """Benchmark of the imaging subsystem on independent frames, against the truth and the OpenCV pipeline, and its speed.
 
 Run: .venv/bin/python bench/imaging.py [--frames N] [--timing-frames M] [--repeats R] [--seed S] [--jobs J]
+     [--reference-code DIR [--rounds K]]
 
 Independent frames: ``tests/obsw/frame_generator.py`` (written for the tests, sharing nothing with the universe's
 camera: triaxial bodies, four shading laws, phase 20-120 deg, Didymos 1-400 px across, plume in 40 % of the frames,
@@ -29,13 +30,21 @@ Speed: the flight code and the OpenCV pipeline (``opencv_pipeline``: the same de
 labelling in OpenCV's fast primitives, equal to the reference's result) timed interleaved on the same 1024x1024
 frames, each repeated: frames of the universe camera along the flyby (default
 detector, plume) and independent frames; the median and the best (least disturbed by other processes) are printed.
+With ``--reference-code DIR`` (another build, e.g. ``git archive 849cbec | tar -x -C DIR``), the same timing runs
+in two child processes side by side, one per build, on the same frames (so a slow spell of this shared machine hits
+both alike), in ``--rounds`` rounds: each build's median and this build's over the reference's.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import pickle
 import statistics
+import subprocess
 import sys
+import tempfile
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -281,6 +290,73 @@ def timing(label: str, frames: list[TimedFrame], repeats: int, threads: int) -> 
     print(f"  ratio ours / OpenCV:          {m_ours / m_ref:.2f} (best {b_ours / b_ref:.2f})")
 
 
+# one build's timing in a child process: the frame sets from a pickle, process_frame timed after OpenCV's pipeline
+# as ``timing`` does; prints {set label: [seconds, ...]} as one JSON line
+_TIMING_CHILD = r"""
+import json, pickle, sys
+from time import perf_counter
+import cv2
+path, repeats, threads = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+cv2.setNumThreads(threads)
+from obsw.config import ImagingConfig
+from obsw.imaging import process_frame
+from obsw.imaging_kernels import warm_up
+from tests.obsw.opencv_reference import opencv_pipeline
+warm_up()
+with open(path, "rb") as f:
+    sets = pickle.load(f)
+cfg = ImagingConfig()
+out = {}
+for label, frames in sets:
+    times, previous = [], None
+    for frame, prediction, bad, cv_map in frames:
+        det = process_frame(frame, cfg, previous, prediction=prediction, bad_pixels=bad)
+        opencv_pipeline(frame, cv_map)
+        for _ in range(repeats):
+            t0 = perf_counter()
+            det = process_frame(frame, cfg, previous, prediction=prediction, bad_pixels=bad)
+            times.append(perf_counter() - t0)
+            opencv_pipeline(frame, cv_map)
+        previous = det
+    out[label] = times
+print(json.dumps(out))
+"""
+
+
+def side_by_side(sets: list[tuple[str, list[TimedFrame]]], reference: Path, repeats: int, rounds: int,
+                 threads: int) -> None:
+    """Time this build's process_frame and the reference build's in two child processes run at once, on the same
+    frames, ``rounds`` times; print each build's median per round and over all rounds, and their ratio."""
+    if not (reference / "obsw" / "imaging.py").is_file():
+        sys.exit(f"--reference-code {reference}: no obsw/imaging.py there (give the root of another build)")
+    pooled: dict[str, dict[str, list[float]]] = {"this": {}, "reference": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "frames.pkl"
+        with path.open("wb") as f:
+            pickle.dump(sets, f)
+        for k in range(rounds):
+            procs = {name: subprocess.Popen(
+                [sys.executable, "-c", _TIMING_CHILD, str(path), str(repeats), str(threads)],
+                env=dict(os.environ, PYTHONPATH=str(code)), cwd=code, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                text=True) for name, code in (("this", ROOT), ("reference", reference.resolve()))}
+            for name, p in procs.items():
+                out, err = p.communicate()
+                if p.returncode != 0:
+                    sys.exit(f"the {name} build's timing failed:\n{err.strip()[-2000:]}")
+                for label, times in json.loads(out.strip().splitlines()[-1]).items():
+                    pooled[name].setdefault(label, []).extend(times)
+                    if name == "reference":
+                        mine = statistics.median(pooled["this"][label][-len(times):]) * 1e3
+                        ref = statistics.median(times) * 1e3
+                        print(f"  round {k + 1}, {label}: this build {mine:.3f} ms, reference {ref:.3f} ms, "
+                              f"ratio {mine / ref:.2f}")
+    print(f"Side by side with {reference} ({rounds} rounds x {repeats} runs per frame, two processes at once):")
+    for label in pooled["this"]:
+        mine = statistics.median(pooled["this"][label]) * 1e3
+        ref = statistics.median(pooled["reference"][label]) * 1e3
+        print(f"  {label}: process_frame median {mine:.3f} ms, reference {ref:.3f} ms, ratio {mine / ref:.2f}")
+
+
 def main() -> None:
     """Run the independent-frame trials, then the timing."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -294,6 +370,9 @@ def main() -> None:
                         help="skip the one-defect-more trials (six more frames per frame)")
     parser.add_argument("--opencv-threads", type=int, default=1,
                         help="OpenCV worker threads (1: like the single-threaded flight code)")
+    parser.add_argument("--reference-code", type=Path,
+                        help="another build's root: time it side by side with this one instead of alone")
+    parser.add_argument("--rounds", type=int, default=3, help="side-by-side rounds (with --reference-code)")
     args = parser.parse_args()
     cv2.setNumThreads(args.opencv_threads)
     warm_up()
@@ -303,7 +382,6 @@ def main() -> None:
         return
     flyby: list[TimedFrame] = [(frame, pred, None, None) for frame, pred in flyby_frames(args.timing_frames,
                                                                                          args.seed)]
-    timing("universe camera along the flyby", flyby, args.repeats, args.opencv_threads)
     generated: list[TimedFrame] = []
     for k in range(args.timing_frames):
         rng = np.random.default_rng([args.seed, 10_000 + k])
@@ -312,7 +390,12 @@ def main() -> None:
         pixels = [(c, r) for c, r, _ in d.hot[: len(d.hot) // 2]] + list(d.dead)
         generated.append((render(scene, rng).pixels, prediction_for(scene, rng, 3.0), ground_map(scene),
                           OpenCvMap.of(scene.size_px, pixels, d.dead_columns)))
-    timing("independent frames, bad-pixel map applied", generated, args.repeats, args.opencv_threads)
+    sets = [("universe camera along the flyby", flyby), ("independent frames, bad-pixel map applied", generated)]
+    if args.reference_code is not None:
+        side_by_side(sets, args.reference_code, args.repeats, args.rounds, args.opencv_threads)
+        return
+    for label, frames in sets:
+        timing(label, frames, args.repeats, args.opencv_threads)
 
 
 if __name__ == "__main__":
