@@ -1,8 +1,11 @@
 """Compiled kernels of the imaging chain (Numba): for the FPGA stages, one pass over the frame for the binning block
-sums, maxima and the histogram of the binned image, one over the blocks for those the outlier filter examines, and the
-outlier test of their pixels; for the software's labelling, the runs of a binary image joined into 8-connected
-components with their raw moments (``obsw.imaging_labelling`` turns them into the statistics), and each region's
-brightness: the sum, peak and histogram of its pixels' 8-bit values (``obsw.imaging_identification``).
+sums, maxima and the histogram of the binned image (the frame's range check included), one over the blocks for those
+the outlier filter examines, the outlier test of their pixels, the corrections of the blocks' sums, and the
+histogram's statistics (median and MAD, the 8-bit histogram, Otsu's threshold: a handful of numpy calls on small
+arrays each cost more than their arithmetic); for the software's labelling, the runs of a binary image joined into
+8-connected components with their raw moments (``obsw.imaging_labelling`` turns them into the statistics), the
+foreground pixels' 8-bit values, and each region's brightness: the sum, peak and histogram of its pixels' 8-bit values
+(``obsw.imaging_identification``).
 
 They do what the FPGA does pixel by pixel, as the universe's readout kernel (``universe.camera.readout``) does for the
 detector; ``obsw.imaging_filtering`` defines the arithmetic and is checked against OpenCV.
