@@ -342,6 +342,8 @@ def side_by_side(sets: list[tuple[str, list[TimedFrame]]], reference: Path, repe
             for name, p in procs.items():
                 out, err = p.communicate()
                 if p.returncode != 0:
+                    for other in procs.values():  # no child left running behind the error
+                        other.kill()
                     sys.exit(f"the {name} build's timing failed:\n{err.strip()[-2000:]}")
                 for label, times in json.loads(out.strip().splitlines()[-1]).items():
                     pooled[name].setdefault(label, []).extend(times)
