@@ -31,30 +31,12 @@ class Binarisation:
 
 
 def otsu_threshold(hist: np.ndarray) -> int:
-    """Return Otsu's threshold t of a histogram: classes v <= t and v > t with the largest between-class variance.
+    """Return Otsu's threshold t of a histogram of counts: classes v <= t and v > t with the largest between-class
+    variance (compiled: ``imaging_kernels.otsu``).
 
     Same definition as OpenCV's THRESH_OTSU: 0 when no split leaves both classes non-empty, first maximum on ties.
     """
-    h = np.asarray(hist, dtype=np.float64)
-    total = h.sum()
-    if total <= 0:
-        return 0
-    p = h / total
-    levels = np.arange(h.size, dtype=np.float64)
-    q1 = np.cumsum(p)
-    m1 = np.cumsum(p * levels)
-    mu = m1[-1]
-    q2 = 1.0 - q1
-    eps = float(np.finfo(np.float32).eps)
-    valid = (np.minimum(q1, q2) >= eps) & (np.maximum(q1, q2) <= 1.0 - eps)
-    if not valid.any():
-        return 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mu1 = m1 / q1
-        mu2 = (mu - m1) / q2
-        sigma = q1 * q2 * (mu1 - mu2) ** 2
-    sigma = np.where(valid, sigma, -1.0)
-    return int(np.argmax(sigma))
+    return int(kernels.otsu(np.asarray(hist, dtype=np.int64)))
 
 
 def binarisation(hist8: np.ndarray, cfg: ImagingConfig) -> Binarisation:
@@ -63,7 +45,7 @@ def binarisation(hist8: np.ndarray, cfg: ImagingConfig) -> Binarisation:
     median, mad = histogram_median_mad(h)
     sigma = MAD_TO_SIGMA * mad
     floor = median + max(math.ceil(cfg.noise_k_sigma * sigma), cfg.min_threshold_margin_dn8)
-    otsu = int(kernels.otsu(h))  # otsu_threshold's operations, compiled
+    otsu = otsu_threshold(h)
     return Binarisation(
         threshold_dn8=int(max(otsu, floor)) if cfg.otsu_threshold else int(floor), otsu_dn8=otsu, background_dn8=median, noise_sigma_dn8=float(sigma)
     )
@@ -78,6 +60,5 @@ def binarised(image: Filtered, cfg: ImagingConfig, bit_depth: int, working: bool
     thr = binarisation(hist8, cfg)
     # lut[v] > T  <=>  v >= first raw value mapped above T (the table is monotonic): threshold the raw image
     first_above = int(np.searchsorted(table, thr.threshold_dn8, side="right"))
-    out = working_buffers(image.binned.shape[0])[3] if working and image.binned.shape[0] == image.binned.shape[1] \
-        else None
+    out = working_buffers(image.binned.shape[0])[3] if working else None
     return np.greater_equal(image.binned, first_above, out=out), thr

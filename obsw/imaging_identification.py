@@ -499,21 +499,13 @@ def aperture_dn8(regions: Regions, blob: Blob, n_pixels: int) -> float:
     """The light a body of ``n_pixels`` would hold: the mean, over ``n_pixels``, of a blob's brightest pixels above
     the frame's threshold (a blob with fewer pixels counts the rest as dark), 8-bit DN. A single pixel cannot set it,
     a small star holds little of it, a faint clump of ejecta less than a lit surface."""
-    n = max(1, int(n_pixels))
-    rows = regions.rows
-    row = rows[blob.label - 1] if not blob.trimmed_from and 0 < blob.label <= len(rows) else -1
-    if row < 0:
-        counts = np.bincount(regions.values8[regions.pixels_of(blob)], minlength=256)[None, :]
-        return float(kernels.top_light(counts, n, regions.threshold_dn8)[0])
-    light = regions.light.get(n)
-    if light is None:  # every described region's at once: many candidates share each expected area
-        light = regions.light[n] = kernels.top_light(regions.histograms["regions"], n, regions.threshold_dn8).tolist()
-    return light[row]
+    return apertures_dn8(regions, [blob], n_pixels)[0]
 
 
 def apertures_dn8(regions: Regions, blobs: list[Blob], n_pixels: int) -> list[float]:
     """``aperture_dn8`` of each blob, at once: near C/A a frame holds a hundred candidates or more, and a call each
-    cost more than the statistic."""
+    cost more than the statistic. A described region's comes from the regions' histograms, every region's at once
+    (many candidates share each expected area); a part cut out of one, from its own pixels."""
     n = max(1, int(n_pixels))
     rows = regions.rows
     last = len(rows)
@@ -522,13 +514,12 @@ def apertures_dn8(regions: Regions, blobs: list[Blob], n_pixels: int) -> list[fl
     for b in blobs:
         row = rows[b.label - 1] if not b.trimmed_from and 0 < b.label <= last else -1
         if row < 0:
-            out.append(aperture_dn8(regions, b, n))
+            counts = np.bincount(regions.values8[regions.pixels_of(b)], minlength=256)[None, :]
+            out.append(float(kernels.top_light(counts, n, regions.threshold_dn8)[0]))
             continue
         if light is None:
-            light = regions.light.get(n)
-            if light is None:
-                light = regions.light[n] = kernels.top_light(regions.histograms["regions"], n,
-                                                             regions.threshold_dn8).tolist()
+            light = regions.light[n] = kernels.top_light(regions.histograms["regions"], n,
+                                                         regions.threshold_dn8).tolist()
         out.append(light[row])
     return out
 
@@ -576,8 +567,9 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     # the most light in Dimorphos's expected area: the body, not a fainter clump of ejecta or a small star; and
     # when it must be resolved, never a point source (a star, however bright: Dimorphos hidden or merged with Didymos)
     n = round(exp.dimorphos_area)
-    lights = dict(zip((id(b) for b in in_gate), apertures_dn8(regions, in_gate, n), strict=True))
-    ranked = sorted(in_gate, key=lambda b: (lights[id(b)], b.area_px, -b.label), reverse=True)
+    lights = apertures_dn8(regions, in_gate, n)
+    ranked = [in_gate[i] for i in sorted(range(len(in_gate)), reverse=True,
+                                         key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
     if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
         return next((b for b in ranked if not _point_source(regions, b, cfg)), None)
     return ranked[0]

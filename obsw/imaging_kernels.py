@@ -184,8 +184,9 @@ def histogram_8bit(table: np.ndarray, hist: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def otsu(hist: np.ndarray) -> int:
-    """Otsu's threshold of an integer histogram (``imaging_binarisation.otsu_threshold`` defines it): the same
-    double-precision operations in the same order as its array form (cumulative sums run in order)."""
+    """Otsu's threshold of an integer histogram (``imaging_binarisation.otsu_threshold``): the class probabilities and
+    first moments as cumulative sums in order, in double precision, the first split of largest between-class variance
+    among those leaving both classes at least float32's epsilon of the total."""
     total = 0.0
     for v in range(hist.size):
         total += float(hist[v])  # integer counts: exact in any order
