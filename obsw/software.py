@@ -44,7 +44,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -72,7 +72,7 @@ from obsw.monitoring import ParameterMonitor
 from obsw.recognition import TrajectoryRecognizer, predicted_los
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
 from obsw.tc_security import TcSecurity
-from obsw.timing import TimingModel, Work
+from obsw.timing import NO_WORK, TimingModel, Work
 from obsw.tm_counters import TmCounters
 from obsw.tracking import Reference, TrackingLoop
 from obsw.trajectory import NominalTrajectory
@@ -132,6 +132,24 @@ def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
     az = np.radians([45.0, 135.0, 225.0, 315.0])
     return np.vstack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.full(4, np.sin(el))])
 
+
+
+class _LiveParameters(Mapping):
+    """The monitorable parameters as a mapping whose values are read when looked up."""
+
+    __slots__ = ("_readers",)
+
+    def __init__(self, readers: dict[pus.Parameter, Callable[[], float | None]]) -> None:
+        self._readers = readers
+
+    def __getitem__(self, parameter: pus.Parameter) -> float | None:
+        return self._readers[parameter]()
+
+    def __iter__(self) -> Iterator[pus.Parameter]:
+        return iter(self._readers)
+
+    def __len__(self) -> int:
+        return len(self._readers)
 
 class FlightSoftware:
     """The on-board software of the flyby, advanced one control period per ``step``."""
@@ -230,6 +248,7 @@ class FlightSoftware:
         self._frame_overrunning = False
         self.last_frame: FrameReport | None = None
         self.executive = self._executive()
+        self._parameter_readers = self._readers()
         # what each telecommand does on board; a TC of the dictionary without an entry is refused
         self._handlers: dict[type, Callable[[Any, float], None]] = {
             pus.Ping: self._ping,
@@ -310,7 +329,7 @@ class FlightSoftware:
         self._frame_overrunning = report.overrun
         self._applied = (self._applied[1], self._torque.copy(), self._actuation_delay_s)
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
-        return StepReply(step=req.step, wheel_torque_nm=tuple(float(t) for t in self._torque), clock_adjust_s=adjust,
+        return StepReply(step=req.step, wheel_torque_nm=tuple(self._torque.tolist()), clock_adjust_s=adjust,
                          frame_request=self._frame_request_out, downlink=tuple(self._tm),
                          actuation_delay_s=self._actuation_delay_s)
 
@@ -369,7 +388,7 @@ class FlightSoftware:
                         f"everything held in OBT moved by {jump:+.6f} s ({moved} schedule entries)")
         self._prev_obt, self._prev_time_frame = tick, self.executive.frames
         self._time_report(tick)
-        return Work()
+        return NO_WORK
 
     def _task_telecommands(self, act: Activation) -> Work:
         """The telecommands received, in order of arrival, each authenticated first."""
@@ -421,7 +440,7 @@ class FlightSoftware:
         self._wheel_speed = np.asarray(req.sensors.wheel_speed_rad_s, dtype=float)
         self._wheel_h = self.wheel_inertia_kgm2 * (self.axes.T @ self._omega + self._wheel_speed)
         self._measured_h = True
-        return Work()
+        return NO_WORK
 
     def _task_imaging(self, act: Activation) -> Work:
         """The software stage of the imaging chain for each frame out of the FPGA, oldest first."""
@@ -440,7 +459,7 @@ class FlightSoftware:
         new = act.of(EventKind.MEASUREMENT)
         rec = self.recognizer
         if rec is None:  # no nominal trajectory yet: nothing to recognise against
-            return Work()
+            return NO_WORK
         for ev in new:
             m: Measurement = ev.payload  # type: ignore[assignment]
             rec.add_measurement(m.exposure_obt_s, m.los_inertial)
@@ -452,7 +471,7 @@ class FlightSoftware:
     def _task_modes(self, act: Activation) -> Work:
         """The mode manager on this period's detections and time."""
         self._mode_by_events(act.now_s, bool(act.of(EventKind.MEASUREMENT)))
-        return Work()
+        return NO_WORK
 
     def _task_control(self, act: Activation) -> Work:
         """The wheel torques from the tracking loop and the PD law; the wheel momentum limit is checked."""
@@ -468,7 +487,7 @@ class FlightSoftware:
             worst = int(np.argmax(np.abs(wheel_h)))
             act.emit(EventKind.PARAM_CHECK_FAILED, WheelLimit(worst, float(wheel_h[worst])))
         self._wheel_saturated = saturated
-        return Work()
+        return NO_WORK
 
     def _task_fdir(self, act: Activation) -> Work:
         """Failure detection, isolation and recovery: each failed parameter check reported and recovered (a wheel at
@@ -511,7 +530,7 @@ class FlightSoftware:
         self._frame_request_out = self._frame_request(act.tick_s)
         if self._frame_request_out is not None:
             self.frame_watch.requested(act.tick_s)
-        return Work()
+        return NO_WORK
 
     def _task_telemetry(self, act: Activation) -> Work:
         """Housekeeping and estimate reports when due."""
@@ -547,24 +566,31 @@ class FlightSoftware:
             self._in_action = False
         return len(due)
 
-    def _parameters(self) -> dict[pus.Parameter, float | None]:
-        """The values of the parameters service 12 can monitor, this period."""
+    def _parameters(self) -> Mapping[pus.Parameter, float | None]:
+        """The values of the parameters service 12 can monitor, this period, each read when looked up (a period's
+        checks look up a few of some thirty)."""
+        return _LiveParameters(self._parameter_readers)
+
+    def _readers(self) -> dict[pus.Parameter, Callable[[], float | None]]:
+        """How to read each parameter service 12 can monitor."""
         P = pus.Parameter
         ex = self.executive
-        values: dict[pus.Parameter, float | None] = {
-            P.MODE: float(self.modes.mode), P.BODY_RATE: math.sqrt(float(self._omega.dot(self._omega))),
-            P.GYRO_BIAS: math.sqrt(float(self._bias.dot(self._bias))) if self.attitude.bias_known else None,
-            P.ATTITUDE_SIGMA: self._attitude_sigma_rad,
-            P.POINTING_ERROR: self.pointing_error_est_rad, P.TASK_OVERRUNS: float(ex.task_overruns),
-            P.FRAME_OVERRUNS: float(ex.frame_overruns), P.SKIPPED_RELEASES: float(ex.skipped),
-            P.TC_REJECTED_AUTH: float(self.security.housekeeping()["tc_rejected_auth"]),
-            P.FRAMES_DISCARDED: float(self.frame_watch.discarded), P.MEASUREMENTS_REJECTED: float(self.lock_gate.rejected),
-            P.EXPOSURE_TO_CENTROID: self._exposure_to_centroid_s,
+        readers: dict[pus.Parameter, Callable[[], float | None]] = {
+            P.MODE: lambda: float(self.modes.mode),
+            P.BODY_RATE: lambda: math.sqrt(float(self._omega.dot(self._omega))),
+            P.GYRO_BIAS: lambda: math.sqrt(float(self._bias.dot(self._bias))) if self.attitude.bias_known else None,
+            P.ATTITUDE_SIGMA: lambda: self._attitude_sigma_rad,
+            P.POINTING_ERROR: lambda: self.pointing_error_est_rad, P.TASK_OVERRUNS: lambda: float(ex.task_overruns),
+            P.FRAME_OVERRUNS: lambda: float(ex.frame_overruns), P.SKIPPED_RELEASES: lambda: float(ex.skipped),
+            P.TC_REJECTED_AUTH: lambda: float(self.security.housekeeping()["tc_rejected_auth"]),
+            P.FRAMES_DISCARDED: lambda: float(self.frame_watch.discarded),
+            P.MEASUREMENTS_REJECTED: lambda: float(self.lock_gate.rejected),
+            P.EXPOSURE_TO_CENTROID: lambda: self._exposure_to_centroid_s,
         }
-        for (momentum, speed), h, rate in zip(self._wheel_parameters, self._wheel_h.tolist(),
-                                              self._wheel_speed.tolist(), strict=True):
-            values[momentum], values[speed] = h, rate
-        return values
+        for k, (momentum, speed) in enumerate(self._wheel_parameters):
+            readers[momentum] = lambda k=k: float(self._wheel_h[k])
+            readers[speed] = lambda k=k: float(self._wheel_speed[k])
+        return readers
 
     def _shift_time(self, step_s: float) -> int:
         """On-board time stepped by ``step_s``: move everything held in OBT with it (schedule tags and C/A anchor,

@@ -124,6 +124,9 @@ class Work:
     limb_samples: int = 0  # gradient samples of the FPGA's limb fit (obsw.imaging_limb)
 
 
+NO_WORK = Work()  # a task's run with nothing counted (one shared value: a frozen Work costs 2 us to build)
+
+
 class TimingModel:
     """Execution times on the nominal processor and the delay from a frame's exposure to the software."""
 

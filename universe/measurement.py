@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from contracts.messages import CentroidMeasurement
-from universe.camera import Scene, camera_to_inertial_matrix, focal_length_px, project_inertial
+from universe.camera import Scene, camera_to_inertial_matrix, focal_length_px, project_camera
 from universe.config import CameraConfig, CentroidModelConfig
 from universe.scene import scene_at
 
@@ -41,20 +41,29 @@ def merge_probability(model: CentroidModelConfig, gap_px: float) -> float:
     return float(np.interp(gap_px, model.merge_gap_px, model.merge_probability))
 
 
-def body_view(scene: Scene, camera: CameraConfig, index: int) -> tuple[np.ndarray, float, float, np.ndarray]:
+def body_view(scene: Scene, camera: CameraConfig, index: int,
+              c2i: np.ndarray | None = None) -> tuple[np.ndarray, float, float, np.ndarray]:
     """Of body ``index`` in the frame: true pinhole (col, row) of its centre (NaN behind the camera), apparent
-    radius (full-resolution px), phase angle (deg) and the unit image direction (col, row) towards the Sun's side."""
+    radius (full-resolution px), phase angle (deg) and the unit image direction (col, row) towards the Sun's side.
+    ``c2i``: the scene's ``camera_to_inertial_matrix``, if the caller has it already."""
     body = scene.bodies[index]
+    c2i = camera_to_inertial_matrix(scene, camera) if c2i is None else c2i
     rel = body.centre_inertial_m - scene.camera_position_m
     range_m = float(np.linalg.norm(rel))
     los = rel / range_m
     sun = scene.sun_direction
     phase_deg = math.degrees(math.acos(float(np.clip(-(sun @ los), -1.0, 1.0))))
-    sun_across = (sun - (sun @ los) * los) @ camera_to_inertial_matrix(scene, camera)  # camera axes
+    sun_across = (sun - (sun @ los) * los) @ c2i  # camera axes
     norm = float(np.hypot(sun_across[0], sun_across[1]))
     towards_sun = sun_across[:2] / norm if norm > 1e-12 else np.zeros(2)
-    col_row = np.asarray(project_inertial(scene, camera, body.centre_inertial_m), dtype=float)
+    col_row = np.asarray(project_camera(rel @ c2i, camera), dtype=float)
     return col_row, focal_length_px(camera) * body.radius_m / range_m, phase_deg, towards_sun
+
+
+def body_views(scene: Scene, camera: CameraConfig) -> list[tuple[np.ndarray, float, float, np.ndarray]]:
+    """``body_view`` of Didymos and Dimorphos, the camera's matrix computed once."""
+    c2i = camera_to_inertial_matrix(scene, camera)
+    return [body_view(scene, camera, i, c2i) for i in (0, 1)]
 
 
 @dataclass
@@ -72,9 +81,12 @@ def episode_frames(mean_frames: float, u: float) -> int:
 
 
 def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidModelConfig,
-                         rng: np.random.Generator, state: MeasurementState | None = None) -> CentroidMeasurement:
+                         rng: np.random.Generator, state: MeasurementState | None = None,
+                         views: list[tuple[np.ndarray, float, float, np.ndarray]] | None = None
+                         ) -> CentroidMeasurement:
     """The imaging chain's report of the frame of ``scene`` (bodies: Didymos, then Dimorphos); ``state`` carries a
-    misidentification episode into the next frames (None: a frame on its own).
+    misidentification episode into the next frames (None: a frame on its own); ``views``: the scene's
+    ``body_views``, if the caller has them already.
 
     Every frame takes the same number of draws, whatever it shows, so one frame's outcome never shifts the next's.
     """
@@ -86,7 +98,7 @@ def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidMode
                                    didymos_area_px=0.0)
     n = camera.resolution_px
     seen: list[tuple[tuple[float, float], float] | None] = []
-    views = [body_view(scene, camera, i) for i in (0, 1)]
+    views = body_views(scene, camera) if views is None else views
     for i, (col_row, radius_px, phase_deg, towards_sun) in enumerate(views):
         if not (np.all(np.isfinite(col_row)) and np.all((col_row >= -0.5) & (col_row <= n - 0.5))):
             seen.append(None)
@@ -119,8 +131,8 @@ def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidMode
 def measure_at(u: Universe, exposure_s: float) -> tuple[CentroidMeasurement, tuple[float, float], tuple[float, float]]:
     """The measurement of the frame the camera takes now, with the true pinhole (col, row) of the centres of
     Dimorphos and Didymos (as ``render_at`` gives them with the pixels)."""
-    scene = scene_at(u, exposure_s)
-    m = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, u.rng["camera"], u.measurement)
-    dim = project_inertial(scene, u.cfg.camera, scene.bodies[1].centre_inertial_m)
-    did = project_inertial(scene, u.cfg.camera, scene.bodies[0].centre_inertial_m)
-    return m, dim, did
+    scene = scene_at(u, exposure_s, oriented=False)  # centres and sizes only: the bodies' spin is not seen
+    views = body_views(scene, u.cfg.camera)
+    m = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, u.rng["camera"], u.measurement, views)
+    (did_px, _, _, _), (dim_px, _, _, _) = views
+    return m, (float(dim_px[0]), float(dim_px[1])), (float(did_px[0]), float(did_px[1]))

@@ -171,3 +171,32 @@ def test_the_universe_sends_a_measurement_and_no_pixels() -> None:
     truth = u.ground_step().truth[-1]  # the period's truth, as ground receives it
     assert truth.frame_id == req.frame.frame_id
     assert truth.dimorphos_px == pytest.approx(req.frame.measurement.dimorphos_col_row, abs=1e-9)
+
+
+def test_the_measurement_does_not_see_the_bodies_orientation() -> None:
+    """The modelled report depends on the bodies' centres and sizes only: turning the bodies changes no draw and no
+    value (so the universe builds its measurement scenes without their spin)."""
+    sc = scene()
+    rng = np.random.default_rng(7)
+    turned = Scene(camera_position_m=sc.camera_position_m, q_body_to_inertial=sc.q_body_to_inertial,
+                   body_rate_rad_s=sc.body_rate_rad_s, exposure_s=sc.exposure_s, sun_direction=sc.sun_direction,
+                   bodies=tuple(Body(centre_inertial_m=b.centre_inertial_m, radius_m=b.radius_m,
+                                     q_body_to_inertial=q / np.linalg.norm(q))
+                                for b, q in zip(sc.bodies, rng.standard_normal((2, 4)), strict=True)))
+    m_cfg = model(noise_px=0.5, noise_radius_fraction=0.05, bias_radius_fraction=(0.2,), dimorphos_dropout=(0.3,))
+    a, b = np.random.default_rng(3), np.random.default_rng(3)
+    for _ in range(20):
+        assert centroid_measurement(sc, CAMERA, m_cfg, a) == centroid_measurement(turned, CAMERA, m_cfg, b)
+
+
+def test_projecting_camera_vectors_equals_projecting_inertial_points() -> None:
+    """``project_camera`` of camera-frame vectors equals ``project_inertial`` of the same points, NaN behind."""
+    from universe.camera import project_camera, project_inertial
+    sc = scene()
+    pts = np.array([[10.0, -20.0, 1000.0], [5.0, 5.0, -1000.0]])
+    col, row = project_inertial(sc, CAMERA, pts)
+    col_c, row_c = project_camera(pts, CAMERA)  # identity attitude: camera frame = inertial frame
+    np.testing.assert_array_equal(col, col_c)
+    np.testing.assert_array_equal(row, row_c)
+    assert math.isnan(col[1]) and math.isnan(project_camera(pts[1], CAMERA)[0])
+    assert project_camera(pts[0], CAMERA) == pytest.approx(tuple(pinhole(pts[0])), abs=1e-9)

@@ -52,14 +52,18 @@ def project_inertial(scene: Scene, cfg: CameraConfig, point_inertial: np.ndarray
     p = np.asarray(point_inertial, dtype=np.float64)
     if p.shape[-1:] != (3,):
         raise RenderError(f"project_inertial: point_inertial must have shape (3,) or (N, 3), got {p.shape}")
-    v = (p - scene.camera_position_m) @ camera_to_inertial_matrix(scene, cfg)  # rows: camera-frame vectors
+    return project_camera((p - scene.camera_position_m) @ camera_to_inertial_matrix(scene, cfg), cfg)
+
+
+def project_camera(v: np.ndarray, cfg: CameraConfig) -> tuple:
+    """Pinhole (col, row) of camera-frame vector(s) (3,) or (N, 3) from the camera; NaN for points behind it."""
     f = focal_length_px(cfg)
     cx, cy = principal_point_px(cfg)
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(v[..., 2] > 0, v[..., 2], np.nan)
         col = cx + f * v[..., 0] / z
         row = cy + f * v[..., 1] / z
-    if p.ndim == 1:
+    if v.ndim == 1:
         return float(col), float(row)
     return col, row
 
