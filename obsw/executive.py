@@ -241,47 +241,52 @@ class Executive:
         if not (math.isfinite(slowdown) and slowdown > 0):
             raise InternalFault(f"executive: processor slow-down {slowdown!r} must be finite and > 0")
         minor = self.frames % self.table.minor_frames
+        frame = self.frames
         free = tick_s + self._carry_s
         runs = []
+        # locals: this loop runs eleven slots every control period
+        queues, cost_s, observe, post = self._queues, self._cost_s, self._observer, self.post
+        last, most = self.last_execution_s, self.max_execution_s
+        isfinite = math.isfinite
         for task, spec, offset_s, deadline_s, critical, timers in self._plans[minor]:
             release = tick_s + offset_s
             deadline = tick_s + deadline_s
-            start = max(release, free)
+            start = release if release >= free else free  # max(release, free), as max() takes the first of equals
             if timers:
                 self._poll_timers(task, timers, start)
-            if not spec.periodic:
-                q = self._queues[task]
-                if not q or q[0][1].time_s > start:  # nothing due: not run
-                    runs.append(Run(task, self.frames, minor, release, start, start, deadline, ran=False))
-                    continue
+            q = queues[task]
+            if not spec.periodic and (not q or q[0][1].time_s > start):  # nothing due: not run
+                runs.append(Run(task, frame, minor, release, start, start, deadline, ran=False))
+                continue
             if start >= deadline and not critical:
                 self.skipped += 1
-                run = Run(task, self.frames, minor, release, start, start, deadline, ran=False, skipped=True)
+                run = Run(task, frame, minor, release, start, start, deadline, ran=False, skipped=True)
                 runs.append(run)
-                self._observe(run)
+                if observe is not None:
+                    observe(run)
                 continue
-            act = Activation(tick_s, start, self._take(task, start))
+            events = self._take(task, start) if q else ()
+            act = Activation(tick_s, start, events)
             work = spec.handler(act)
-            execution = self._cost_s(task, work) * slowdown
-            if not (math.isfinite(execution) and execution >= 0):
+            execution = cost_s(task, work) * slowdown
+            if not (isfinite(execution) and execution >= 0):
                 raise InternalFault(f"executive: {task.name} execution time {execution!r} s")
             finish = start + execution
             free = finish
             for kind, payload, priority in act.emitted:
-                self.post(kind, finish, payload, priority)
-            run = Run(task, self.frames, minor, release, start, finish, deadline, act.events)
-            self.last_execution_s[task] = execution
-            self.max_execution_s[task] = max(self.max_execution_s[task], execution)
-            self.task_overruns += run.overrun
+                post(kind, finish, payload, priority)
+            run = Run(task, frame, minor, release, start, finish, deadline, events)
+            last[task] = execution
+            if execution > most[task]:
+                most[task] = execution
+            if finish > deadline:  # run.overrun: it ran
+                self.task_overruns += 1
             runs.append(run)
-            self._observe(run)
+            if observe is not None:
+                observe(run)
         end = max(free, tick_s)
         overrun = end > tick_s + self.period_s
         self.frame_overruns += overrun
         self._carry_s = max(0.0, end - (tick_s + self.period_s))
         self.frames += 1
         return FrameReport(tick_s, self.frames - 1, minor, tuple(runs), end, overrun)
-
-    def _observe(self, run: Run) -> None:
-        if self._observer is not None:
-            self._observer(run)

@@ -20,6 +20,7 @@ it, overruns are found by the executive from the execution times it gives.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pydantic import Field
@@ -132,36 +133,31 @@ class TimingModel:
 
     def __init__(self, cfg: TimingConfig) -> None:
         self.cfg = cfg
+        c = cfg
+        # each task's cost as a function of its work, looked up per run (eleven runs a control period)
+        self._costs: dict[Task, Callable[[Work], float]] = {
+            Task.TIME: lambda w: c.time_s,
+            Task.TELECOMMANDS: lambda w: c.telecommand_s * w.commands,
+            Task.SCHEDULE: lambda w: c.schedule_s + c.telecommand_s * w.commands,
+            Task.ATTITUDE: lambda w: c.attitude_s,
+            Task.IMAGING: lambda w: (c.imaging_s * w.frames + c.imaging_s_per_region * w.regions
+                                     + c.imaging_s_per_foreground_pixel * w.foreground_px
+                                     + c.fpga_limb_s_per_sample * w.limb_samples),
+            Task.RECOGNITION: lambda w: (c.recognition_s + c.recognition_s_per_candidate * w.candidates
+                                         + c.recognition_s_per_measurement * w.measurements),
+            Task.MODES: lambda w: c.modes_s,
+            Task.CONTROL: lambda w: c.control_s,
+            # with the telecommands of the event actions it runs
+            Task.FDIR: lambda w: c.fdir_s + c.fdir_s_per_check * w.checks + c.telecommand_s * w.commands,
+            Task.CAMERA: lambda w: c.camera_s,
+            Task.TELEMETRY: lambda w: c.telemetry_s + c.telemetry_s_per_packet * w.packets,
+        }
+        if not c.modelled:
+            self._costs = {t: lambda w: 0.0 for t in Task}
 
     def execution_s(self, task: Task, work: Work) -> float:
         """How long ``task`` takes for ``work`` on the nominal processor, s."""
-        c = self.cfg
-        if not c.modelled:
-            return 0.0
-        if task == Task.TIME:
-            return c.time_s
-        if task == Task.TELECOMMANDS:
-            return c.telecommand_s * work.commands
-        if task == Task.SCHEDULE:
-            return c.schedule_s + c.telecommand_s * work.commands
-        if task == Task.ATTITUDE:
-            return c.attitude_s
-        if task == Task.IMAGING:
-            return (c.imaging_s * work.frames + c.imaging_s_per_region * work.regions
-                    + c.imaging_s_per_foreground_pixel * work.foreground_px
-                    + c.fpga_limb_s_per_sample * work.limb_samples)
-        if task == Task.RECOGNITION:
-            return (c.recognition_s + c.recognition_s_per_candidate * work.candidates
-                    + c.recognition_s_per_measurement * work.measurements)
-        if task == Task.MODES:
-            return c.modes_s
-        if task == Task.CONTROL:
-            return c.control_s
-        if task == Task.FDIR:  # with the telecommands of the event actions it runs
-            return c.fdir_s + c.fdir_s_per_check * work.checks + c.telecommand_s * work.commands
-        if task == Task.CAMERA:
-            return c.camera_s
-        return c.telemetry_s + c.telemetry_s_per_packet * work.packets
+        return self._costs[task](work)
 
     def frame_delay_s(self, width_px: int, height_px: int, bit_depth: int, exposure_s: float,
                       binned_px: int) -> float:
