@@ -181,13 +181,13 @@ class Universe:
         )
 
     # -- OBSW side -----------------------------------------------------------------------------------------
-    def begin(self) -> tuple[StepRequest, bytes]:
+    def begin(self) -> tuple[StepRequest, bytes | memoryview]:
         """The request of step 0: sensors at the start time, no frame yet."""
         self._log.extend(self.faults.transitions(self.t_s))
         self._record_truth()
         return self._request(frame_requested=False)
 
-    def advance(self, reply: StepReply) -> tuple[StepRequest, bytes] | None:
+    def advance(self, reply: StepReply) -> tuple[StepRequest, bytes | memoryview] | None:
         """Apply the OBSW's reply over one control period; return the next request, or None at the end."""
         if len(reply.wheel_torque_nm) != self.dynamics.n_wheels:
             raise ValueError(
@@ -215,7 +215,7 @@ class Universe:
         return self._request(frame_requested=reply.frame_request is not None,
                              exposure_s=reply.frame_request.exposure_s if reply.frame_request else None)
 
-    def _request(self, frame_requested: bool, exposure_s: float | None = None) -> tuple[StepRequest, bytes]:
+    def _request(self, frame_requested: bool, exposure_s: float | None = None) -> tuple[StepRequest, bytes | memoryview]:
         outage = bool(self.faults.active("star_tracker_outage", self.t_s))
         bias = sum((np.radians(f.magnitude or 0.0) * np.ones(3) for f in self.faults.active("gyro_bias_step", self.t_s)),
                    np.zeros(3))
@@ -235,7 +235,7 @@ class Universe:
         return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta,
                            cpu_slowdown=slowdown, imaging_delay_s=delay), blob
 
-    def _frame(self, exposure_s: float) -> tuple[FrameMeta | None, bytes]:
+    def _frame(self, exposure_s: float) -> tuple[FrameMeta | None, bytes | memoryview]:
         if self.faults.active("frame_lost", self.t_s):
             self._log.append(f"frame lost at t={self.t_s:.2f} s (fault)")
             return None, b""
@@ -252,7 +252,10 @@ class Universe:
         meta = FrameMeta(frame_id=self.frame_count, obt_s=self._obt_s, width=side, height=side,
                          bit_depth=self.cfg.camera.bit_depth, exposure_s=exposure_s, measurement=measurement)
         self.frame_count += 1
-        return meta, b"" if pixels is None else pixels.astype("<u2", copy=False).tobytes()
+        if pixels is None:
+            return meta, b""
+        # the frame's own octets, read-only, not a 2 MB copy (every frame is a new array, never written again)
+        return meta, memoryview(np.ascontiguousarray(pixels.astype("<u2", copy=False))).cast("B").toreadonly()
 
     def frame_at(self, t_s: float, q: tuple[float, ...], omega_rad_s: tuple[float, ...],
                  exposure_s: float) -> np.ndarray:
