@@ -4,7 +4,8 @@ the same session.
 Run: .venv/bin/python bench/speed.py [--rounds N] [--reference-code DIR] [--scenario PATH] [--basilisk-python PATH]
 
 Every item runs in a child process of its own (so its peak resident memory is its own, read from ``wait4``), in
-rounds, the builds taking turns within each round (so a slow spell of this shared machine hits them alike):
+rounds, the builds taking turns within each round, each going first in every other round (so a slow spell of this shared
+machine hits them alike):
 - in process, image in the loop (``run_in_process``): wall time, real-time factor, time per control period;
 - in process, centroid level (no rendering; the imaging chain's output modelled);
 - ``flyby run`` with three processes over Zenoh, image in the loop: start to report written, and its loop (the
@@ -195,8 +196,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for rnd in range(1 if args.no_warm_up else 0, args.rounds + 1):
             for item in items:
-                # Basilisk is the reference of every build: it runs once a round
-                for name, code in ({"Basilisk": ROOT} if item == "basilisk" else builds).items():
+                # Basilisk is the reference of every build: it runs once a round; the builds go first in turn
+                # (whichever ran first was measured slower in some spells, the same code either way)
+                turns = list(({"Basilisk": ROOT} if item == "basilisk" else builds).items())
+                for name, code in turns[::-1] if rnd % 2 else turns:
                     if item == "basilisk":
                         r = basilisk(bsk_python, bsk_config)
                     elif item == "flyby":
