@@ -133,7 +133,6 @@ def wheel_axes_body(layout: str, pyramid_angle_deg: float) -> np.ndarray:
     return np.vstack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.full(4, np.sin(el))])
 
 
-
 class _LiveParameters(Mapping):
     """The monitorable parameters as a mapping whose values are read when looked up."""
 
@@ -145,11 +144,17 @@ class _LiveParameters(Mapping):
     def __getitem__(self, parameter: pus.Parameter) -> float | None:
         return self._readers[parameter]()
 
+    def get(self, parameter: pus.Parameter, default: float | None = None) -> float | None:  # type: ignore[override]
+        """The parameter's value now, ``default`` for a parameter it does not hold (a reader's own error raises)."""
+        reader = self._readers.get(parameter)
+        return default if reader is None else reader()
+
     def __iter__(self) -> Iterator[pus.Parameter]:
         return iter(self._readers)
 
     def __len__(self) -> int:
         return len(self._readers)
+
 
 class FlightSoftware:
     """The on-board software of the flyby, advanced one control period per ``step``."""

@@ -10,7 +10,7 @@ import pytest
 from contracts.messages import FrameRequest, StepReply
 from scenario import compose
 from scenario.model import Scenario
-from universe.camera import Body, Scene
+from universe.camera import Body, Scene, project_camera, project_inertial
 from universe.config import CameraConfig, CentroidModelConfig, UniverseConfig
 from universe.measurement import MeasurementState, body_view, centroid_measurement, episode_frames
 
@@ -191,7 +191,6 @@ def test_the_measurement_does_not_see_the_bodies_orientation() -> None:
 
 def test_projecting_camera_vectors_equals_projecting_inertial_points() -> None:
     """``project_camera`` of camera-frame vectors equals ``project_inertial`` of the same points, NaN behind."""
-    from universe.camera import project_camera, project_inertial
     sc = scene()
     pts = np.array([[10.0, -20.0, 1000.0], [5.0, 5.0, -1000.0]])
     col, row = project_inertial(sc, CAMERA, pts)

@@ -52,6 +52,6 @@ __all__ = [
     "NORMAL_QUANTILES", "Body", "CosmicRays", "RenderError", "Scene", "SensorDefects", "StarCatalogue",
     "camera_to_inertial_matrix", "cosmic_rays", "dark_frame", "deposit", "expected_hits", "focal_length_px",
     "display_png8", "frame_to_png8", "hot_pixels", "normal_codes", "plume_cross_section_m2", "principal_point_px",
-    "project_camera", "project_inertial", "psf_half_size_px", "psf_kernel", "quat_matrix", "render_frame", "scene_electrons",
-    "sensor_defects", "sky_stars", "smeared_psf", "warm_up",
+    "project_camera", "project_inertial", "psf_half_size_px", "psf_kernel", "quat_matrix", "render_frame",
+    "scene_electrons", "sensor_defects", "sky_stars", "smeared_psf", "warm_up",
 ]
