@@ -253,7 +253,7 @@ class FlightSoftware:
         self._frame_overrunning = False
         self.last_frame: FrameReport | None = None
         self.executive = self._executive()
-        self._parameter_readers = self._readers()
+        self._live_parameters = _LiveParameters(self._readers())  # read as service 12 looks
         # what each telecommand does on board; a TC of the dictionary without an entry is refused
         self._handlers: dict[type, Callable[[Any, float], None]] = {
             pus.Ping: self._ping,
@@ -574,7 +574,7 @@ class FlightSoftware:
     def _parameters(self) -> Mapping[pus.Parameter, float | None]:
         """The values of the parameters service 12 can monitor, this period, each read when looked up (a period's
         checks look up a few of some thirty)."""
-        return _LiveParameters(self._parameter_readers)
+        return self._live_parameters
 
     def _readers(self) -> dict[pus.Parameter, Callable[[], float | None]]:
         """How to read each parameter service 12 can monitor."""

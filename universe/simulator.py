@@ -215,7 +215,8 @@ class Universe:
         return self._request(frame_requested=reply.frame_request is not None,
                              exposure_s=reply.frame_request.exposure_s if reply.frame_request else None)
 
-    def _request(self, frame_requested: bool, exposure_s: float | None = None) -> tuple[StepRequest, bytes | memoryview]:
+    def _request(self, frame_requested: bool,
+                 exposure_s: float | None = None) -> tuple[StepRequest, bytes | memoryview]:
         outage = bool(self.faults.active("star_tracker_outage", self.t_s))
         bias = sum((np.radians(f.magnitude or 0.0) * np.ones(3) for f in self.faults.active("gyro_bias_step", self.t_s)),
                    np.zeros(3))
