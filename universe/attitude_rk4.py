@@ -137,9 +137,51 @@ def integrate(x: np.ndarray, u_held: np.ndarray, free_axes: np.ndarray, gain: np
     return out
 
 
+@njit(cache=True, nogil=True)
+def period(q: np.ndarray, w: np.ndarray, h: np.ndarray, u_before: np.ndarray, u_cmd: np.ndarray, switch_s: float,
+           dt_s: float, motor_on: np.ndarray, max_torque: float, max_substep_s: float, friction_rate_s: float,
+           free_axes: np.ndarray, gain: np.ndarray, i_eff: np.ndarray, i_eff_inv: np.ndarray, jw: float, h_max: float,
+           cv: float, cc: float, inv_eps: float, axes: np.ndarray, free: np.ndarray, out: np.ndarray) -> None:
+    """One control period into ``out`` = [q (4), w (3), rotor speeds (N)]: the motor torques ``u_before`` held for
+    ``switch_s`` s, then ``u_cmd`` to ``dt_s`` (``u_cmd`` alone when ``switch_s`` is 0), each clipped to
+    ``max_torque`` and gated by ``motor_on``, in RK4 substeps of at most ``max_substep_s`` and short against the
+    friction's ``friction_rate_s``; ``h`` (N,) the rotors' momenta at the start, ``axes`` (3, N) their spin axes,
+    ``free`` (N,) 0 for a stuck rotor. The operations and their order are ``SpacecraftDynamics.step``'s NumPy ones
+    (the speeds' dot products summed over the axes in order, as NumPy sums ``axes.T @ w``): the same bits."""
+    n = h.shape[0]
+    x = np.empty(7 + n)
+    x[0:4] = q
+    x[4:7] = w
+    x[7:] = h
+    u_held = np.empty(n)
+    for segment in range(2):
+        if segment == 0:
+            if not switch_s > 0.0:
+                continue
+            u, span = u_before, switch_s
+        else:
+            u, span = u_cmd, (dt_s - switch_s) if switch_s > 0.0 else dt_s
+        for i in range(n):
+            v = u[i] if u[i] > -max_torque else -max_torque  # np.maximum(u, -max): finite torques, checked
+            v = v if v < max_torque else max_torque
+            u_held[i] = v * motor_on[i]
+        n_sub = 0
+        if span != 0.0:
+            n_sub = max(math.ceil(span / max_substep_s - 1e-9), math.ceil(span * friction_rate_s / 0.5))
+        hs = span / n_sub if n_sub else 0.0
+        x = integrate(x, u_held, free_axes, gain, i_eff, i_eff_inv, jw, h_max, cv, cc, inv_eps, n_sub, hs)
+    out[0:7] = x[0:7]
+    wx, wy, wz = x[4], x[5], x[6]
+    for i in range(n):
+        out[7 + i] = (x[7 + i] / jw - (axes[0, i] * wx + axes[1, i] * wy + axes[2, i] * wz)) * free[i]
+
+
 def warm_up() -> None:
-    """Compile (or load from the cache) the kernel now: one substep of a three-wheel body."""
+    """Compile (or load from the cache) the kernels now: one substep and one period of a three-wheel body."""
     free = np.array([[0.0, 1.0, 0.0, 0.0], [1.0, 0.0, 1.0, 0.0], [2.0, 0.0, 0.0, 1.0]])
     eye = np.eye(3).ravel()
     x = np.array([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
     integrate(x, np.zeros(3), free, np.ones(3), eye, eye, 1e-5, 0.1, 0.0, 0.0, 1.0, 1, 0.01)
+    ones = np.ones(3)
+    period(x[:4], x[4:7], x[7:], ones, ones, 0.004, 0.1, ones, 0.01, 0.01, 10.0, free, ones, eye, eye, 1e-5, 0.1, 0.0,
+           0.0, 1.0, np.eye(3), ones, np.empty(10))

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from universe.attitude_rk4 import integrate
+from universe.attitude_rk4 import period
 from universe.config import SpacecraftConfig
 
 
@@ -222,18 +222,14 @@ class SpacecraftDynamics:
             # A rotor seizing hands its relative momentum to the body: H is conserved, free rotors keep their h.
             total = self.inertia_kgm2 @ w + a @ h
             w = mode.i_eff_inv @ (total - a @ (mode.free * h))
-        motor_on = mode.free.copy()
-        for i in failed:
-            motor_on[i] = 0.0
-        x = np.concatenate((q, w, h))
-        # the torques held before the switch, then the new ones; a span of zero integrates nothing
-        for u, span_s in ((u_before, switch_s), (u_cmd, dt_s - switch_s)) if switch_s > 0.0 else ((u_cmd, dt_s),):
-            u_held = np.minimum(np.maximum(u, -self.max_torque_nm), self.max_torque_nm) * motor_on
-            n_sub = 0 if span_s == 0.0 else max(math.ceil(span_s / self._max_substep_s - 1e-9),
-                                                 math.ceil(span_s * self._friction_rate_s / 0.5))
-            hs = span_s / n_sub if n_sub else 0.0
-            x = integrate(x, u_held, mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw,
-                          self.max_momentum_nms, self._viscous, self._coulomb, 1.0 / self._smooth, n_sub, hs)
-        q, w, h = x[:4], x[4:7], x[7:]
-        speeds = (h / jw - a.T @ w) * mode.free
-        return AttitudeState(q=q, omega_rad_s=w, wheel_speed_rad_s=speeds)
+        motor_on = mode.free
+        if failed:
+            motor_on = motor_on.copy()
+            for i in failed:
+                motor_on[i] = 0.0
+        # the torques held before the switch, then the new ones, and the rotor speeds after: one compiled call
+        out = np.empty(7 + self.n_wheels)
+        period(q, w, h, u_before, u_cmd, switch_s, dt_s, motor_on, self.max_torque_nm, self._max_substep_s,
+               self._friction_rate_s, mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw,
+               self.max_momentum_nms, self._viscous, self._coulomb, 1.0 / self._smooth, a, mode.free, out)
+        return AttitudeState(q=out[:4], omega_rad_s=out[4:7], wheel_speed_rad_s=out[7:])
