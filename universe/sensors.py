@@ -14,10 +14,12 @@ import numpy as np
 
 from universe.config import SensorsConfig
 from universe.dynamics import AttitudeState
+from universe.sensor_kernels import gyro_and_tachometers, star_tracker_q
 
 ARCSEC_RAD = math.pi / (180.0 * 3600.0)
 DEG_H_RAD_S = math.pi / 180.0 / 3600.0
 DEG_SQRT_H_RAD_SQRT_S = math.pi / 180.0 / 60.0
+_NO_STEP = np.zeros(3)  # the gyro's fault step when there is none (not added)
 
 
 class SensorError(ValueError):
@@ -34,31 +36,6 @@ class SensorReadings:
     """body rate, rad/s, with bias and noise"""
     wheel_speed_rad_s: np.ndarray
     """rotor speeds relative to the body, rad/s, with noise"""
-
-
-def quaternion_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Return the Hamilton product p (x) q of scalar-last quaternions (apply q first, then p)."""
-    px, py, pz, pw = p
-    qx, qy, qz, qw = q
-    return np.array(
-        [
-            pw * qx + px * qw + py * qz - pz * qy,
-            pw * qy - px * qz + py * qw + pz * qx,
-            pw * qz + px * qy - py * qx + pz * qw,
-            pw * qw - px * qx - py * qy - pz * qz,
-        ]
-    )
-
-
-def quaternion_from_rotvec(rotvec: np.ndarray) -> np.ndarray:
-    """Return the scalar-last unit quaternion of a rotation vector (axis times angle, rad)."""
-    rotvec = np.asarray(rotvec, dtype=float)
-    angle = math.sqrt(float(rotvec.dot(rotvec)))  # np.linalg.norm's own formula, without its overhead
-    if angle < 1e-12:
-        # sin(a/2)/a -> 1/2 as a -> 0.
-        return np.array([0.5 * rotvec[0], 0.5 * rotvec[1], 0.5 * rotvec[2], 1.0]) / math.sqrt(1.0 + 0.25 * angle**2)
-    s = math.sin(0.5 * angle) / angle
-    return np.array([s * rotvec[0], s * rotvec[1], s * rotvec[2], math.cos(0.5 * angle)])
 
 
 class Sensors:
@@ -110,14 +87,16 @@ class Sensors:
         if speeds.shape != (self.n_wheels,):
             raise SensorError(f"state.wheel_speed_rad_s must have shape ({self.n_wheels},), got {speeds.shape}")
         noise = self._rng.standard_normal(6 + self.n_wheels)
-        self._gyro_bias_rad_s = self._gyro_bias_rad_s + (self._rrw_rad_s_sqrt_s * math.sqrt(dt_s)) * noise[0:3]
-        gyro = omega + self._gyro_bias_rad_s + (self._arw_rad_sqrt_s / math.sqrt(dt_s)) * noise[3:6]
+        step = _NO_STEP
         if gyro_bias_step_rad_s is not None:
             step = np.asarray(gyro_bias_step_rad_s, dtype=float)
             if step.shape != (3,):
                 raise SensorError(f"gyro_bias_step_rad_s must have shape (3,), got {step.shape}")
-            gyro = gyro + step
-        wheels = speeds + self._wheel_sigma_rad_s * noise[6:]
+        gyro, wheels = np.empty(3), np.empty(self.n_wheels)
+        # the bias walks in place: the property hands out copies, so no caller holds this array
+        gyro_and_tachometers(omega, speeds, self._gyro_bias_rad_s, noise, self._rrw_rad_s_sqrt_s * math.sqrt(dt_s),
+                             self._arw_rad_sqrt_s / math.sqrt(dt_s), self._wheel_sigma_rad_s, step,
+                             gyro_bias_step_rad_s is not None, gyro, wheels)
         return SensorReadings(
             star_tracker_q=self._star_tracker(t_s, state, star_tracker_out),
             gyro_rad_s=gyro,
@@ -136,9 +115,8 @@ class Sensors:
             q_true = np.asarray(state.q, dtype=float)
             if q_true.shape != (4,):
                 raise SensorError(f"state.q must have shape (4,), got {q_true.shape}")
-            error = self._st_bias_rad + self._st_sigma_rad * self._rng.standard_normal(3)
-            # Errors are small rotations about the tracker (body) axes: R_meas = R_true R(error).
-            q = quaternion_multiply(q_true, quaternion_from_rotvec(error))
-            self._st_held = q / math.sqrt(float(q.dot(q)))
+            held = np.empty(4)
+            star_tracker_q(q_true, self._st_bias_rad, self._st_sigma_rad, self._rng.standard_normal(3), held)
+            self._st_held = held
             self._st_slot = slot
         return self._st_held.copy()
