@@ -14,7 +14,7 @@ from functools import lru_cache
 import numpy as np
 
 from universe.config import BodiesConfig, FlybyConfig, UncertaintyConfig
-from universe.dynamics import body_to_inertial_matrices
+from universe.geometry_kernels import truth_geometry
 
 ArrayLike = float | np.ndarray
 
@@ -73,21 +73,6 @@ def _camera_axes_cached(boresight_body: tuple[float, ...]) -> np.ndarray:
     x = _orthogonal_unit(ref, z, "camera x reference")
     y = _cross(z, x)
     return np.vstack([x, y, z])
-
-
-def angles_between_rad(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The angles between the non-zero 3-vectors along the last axis of two arrays, rad (atan2 form, accurate near 0
-    and pi)."""
-    c = _cross(a, b)
-    return np.arctan2(np.sqrt(np.sum(c * c, axis=-1)), np.sum(a * b, axis=-1))
-
-
-def in_square_fov_many(los_camera: np.ndarray, fov_deg: float) -> np.ndarray:
-    """Whether each row of an (N, 3) array of directions in camera axes falls in the square pinhole field of view of
-    side fov_deg."""
-    x, y, z = los_camera[:, 0], los_camera[:, 1], los_camera[:, 2]
-    half_tan = float(np.tan(np.radians(fov_deg) / 2.0))
-    return (z > 0.0) & (np.abs(x) <= half_tan * z) & (np.abs(y) <= half_tan * z)
 
 
 @dataclass(frozen=True)
@@ -159,6 +144,10 @@ class FlybyGeometry:
         self.dimorphos_arm_m = float(bodies.orbit_radius_m) / (1.0 + q)
         self.didymos_arm_m = float(bodies.orbit_radius_m) * q / (1.0 + q)
         self._sun = _unit(np.asarray(bodies.sun_direction, dtype=float), "bodies.sun_direction")
+        # what the compiled truth geometry takes (geometry_kernels.truth_geometry)
+        self._orbit_constants = np.array([self.ca_time_s, self.ca_distance_m, self.speed_m_s,
+                                          float(np.radians(bodies.orbit_phase_deg)), self.mean_motion_rad_s,
+                                          self.dimorphos_arm_m, self.didymos_arm_m])
 
     def spacecraft_position_m(self, t_s: ArrayLike) -> np.ndarray:
         """Return the spacecraft position relative to the barycentre at true time t_s, m."""
@@ -236,35 +225,23 @@ class FlybyGeometry:
             raise GeometryError(f"q_body_to_inertial must be a unit quaternion of shape (4,), got {q[bad[0]].tolist()}")
         if not 0.0 < fov_deg < 180.0:
             raise GeometryError(f"fov_deg must be in (0, 180), got {fov_deg}")
-        r_sc = self.spacecraft_position_m(t)
-        unit = self._orbit_unit(t)
-        to_dim = self.dimorphos_arm_m * unit - r_sc
-        to_did = -self.didymos_arm_m * unit - r_sc
-        range_dim = np.sqrt(np.sum(to_dim * to_dim, axis=1))
-        range_did = np.sqrt(np.sum(to_did * to_did, axis=1))
-        body_to_inertial = body_to_inertial_matrices(q)
         axes = camera_axes_body(np.asarray(boresight_body, dtype=float))
-        boresight_inertial = body_to_inertial @ axes[2]
-        # at a body's very centre every direction leads to it: the line of sight is taken along the boresight
-        los_dim = np.where((range_dim > 0.0)[:, None], to_dim / np.where(range_dim > 0.0, range_dim, 1.0)[:, None],
-                           boresight_inertial)
-        los_did = np.where((range_did > 0.0)[:, None], to_did / np.where(range_did > 0.0, range_did, 1.0)[:, None],
-                           boresight_inertial)
-        los_body = np.einsum("nji,nj->ni", body_to_inertial, los_dim)
-        los_cam = los_body @ axes.T
-        velocity = self.spacecraft_velocity_m_s(t) - self.dimorphos_velocity_m_s(t)
+        scalars, vectors, in_fov = np.empty((t.size, 6)), np.empty((t.size, 4, 3)), np.empty(t.size, dtype=bool)
+        truth_geometry(t, np.ascontiguousarray(q), self._orbit_constants, self.e_ca, self.e_v, self.orbit_e1,
+                       self.orbit_e2, self._sun, axes, float(np.tan(np.radians(fov_deg) / 2.0)), scalars, vectors,
+                       in_fov)
         return TruthSamples(
             t_s=t,
-            range_to_dimorphos_m=range_dim,
-            range_to_didymos_m=range_did,
-            los_dimorphos_inertial=los_dim,
-            los_didymos_inertial=los_did,
-            los_dimorphos_body=los_body,
-            los_dimorphos_camera=los_cam,
-            theta_rad=angles_between_rad(velocity, los_dim),
-            phase_angle_deg=np.degrees(angles_between_rad(np.broadcast_to(self._sun, los_dim.shape), -los_dim)),
-            pointing_error_rad=angles_between_rad(boresight_inertial, los_dim),
-            target_in_fov=in_square_fov_many(los_cam, fov_deg),
+            range_to_dimorphos_m=scalars[:, 0],
+            range_to_didymos_m=scalars[:, 1],
+            los_dimorphos_inertial=vectors[:, 0],
+            los_didymos_inertial=vectors[:, 1],
+            los_dimorphos_body=vectors[:, 2],
+            los_dimorphos_camera=vectors[:, 3],
+            theta_rad=scalars[:, 2],
+            phase_angle_deg=scalars[:, 3],
+            pointing_error_rad=scalars[:, 4],
+            target_in_fov=in_fov,
         )
 
 def nominal_ca(flyby: FlybyConfig, unc: UncertaintyConfig, rng: np.random.Generator) -> tuple[float, float]:

@@ -23,7 +23,7 @@ from contracts.hoptrace import WORK_END, WORK_START, HopTrace
 from contracts.messages import GroundReply, StepReply
 from contracts.runtime import Attachment
 from contracts.shared_blobs import run_folder
-from universe import attitude_rk4, sensor_kernels
+from universe import attitude_rk4, geometry_kernels, sensor_kernels
 from universe.camera import display_png8, warm_up
 from universe.simulator import Universe
 
@@ -155,7 +155,8 @@ def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, 
             warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
             attitude_rk4.warm_up()
             sensor_kernels.warm_up()
-            log.info("camera, dynamics and sensor kernels ready in %.1f s", wall.now() - t0)
+            geometry_kernels.warm_up()
+            log.info("camera, dynamics, sensor and geometry kernels ready in %.1f s", wall.now() - t0)
             cfg = made[0].cfg
             frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
             try:
