@@ -156,8 +156,9 @@ class FlybyGeometry:
 
     def spacecraft_velocity_m_s(self, t_s: ArrayLike) -> np.ndarray:
         """Return the spacecraft velocity relative to the barycentre (constant), m/s."""
-        shape = np.shape(t_s) + (3,)
-        return np.broadcast_to(self.speed_m_s * self.e_v, shape).copy()
+        if np.ndim(t_s) == 0:  # one time (every frame): a copy of the vector
+            return self.speed_m_s * self.e_v
+        return np.broadcast_to(self.speed_m_s * self.e_v, np.shape(t_s) + (3,)).copy()
 
     def _orbit_phase_rad(self, t_s: ArrayLike) -> np.ndarray:
         """Return Dimorphos's orbital phase at t_s, rad, with a trailing axis for broadcasting."""

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from contracts.messages import CentroidMeasurement
-from universe.camera import Scene, camera_to_inertial_matrix, focal_length_px, project_camera
+from universe.camera import Scene, camera_to_inertial_matrix, focal_length_px, principal_point_px
 from universe.config import CameraConfig, CentroidModelConfig
 from universe.scene import scene_at
 
@@ -48,16 +48,25 @@ def body_view(scene: Scene, camera: CameraConfig, index: int,
     ``c2i``: the scene's ``camera_to_inertial_matrix``, if the caller has it already."""
     body = scene.bodies[index]
     c2i = camera_to_inertial_matrix(scene, camera) if c2i is None else c2i
-    rel = body.centre_inertial_m - scene.camera_position_m
-    range_m = float(np.linalg.norm(rel))
-    los = rel / range_m
-    sun = scene.sun_direction
-    phase_deg = math.degrees(math.acos(float(np.clip(-(sun @ los), -1.0, 1.0))))
-    sun_across = (sun - (sun @ los) * los) @ c2i  # camera axes
-    norm = float(np.hypot(sun_across[0], sun_across[1]))
-    towards_sun = sun_across[:2] / norm if norm > 1e-12 else np.zeros(2)
-    col_row = np.asarray(project_camera(rel @ c2i, camera), dtype=float)
-    return col_row, focal_length_px(camera) * body.radius_m / range_m, phase_deg, towards_sun
+    # in Python floats, once a frame: NumPy's calls on 3-vectors cost more than their arithmetic. The same bits as
+    # its forms: element-wise operations, and its 3-element dot and vector-matrix products sum in this order
+    (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = c2i.tolist()
+    centre, camera_at, sun = (body.centre_inertial_m.tolist(), scene.camera_position_m.tolist(),
+                              scene.sun_direction.tolist())
+    r0, r1, r2 = centre[0] - camera_at[0], centre[1] - camera_at[1], centre[2] - camera_at[2]
+    range_m = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    l0, l1, l2 = r0 / range_m, r1 / range_m, r2 / range_m
+    cos_sun = sun[0] * l0 + sun[1] * l1 + sun[2] * l2
+    phase_deg = math.degrees(math.acos(min(max(-cos_sun, -1.0), 1.0)))
+    a0, a1, a2 = sun[0] - cos_sun * l0, sun[1] - cos_sun * l1, sun[2] - cos_sun * l2  # the Sun across the line
+    across_col, across_row = a0 * c00 + a1 * c10 + a2 * c20, a0 * c01 + a1 * c11 + a2 * c21  # camera axes
+    norm = float(np.hypot(across_col, across_row))  # libm's hypot, as NumPy's (math.hypot rounds its own way)
+    towards_sun = np.array([across_col / norm, across_row / norm]) if norm > 1e-12 else np.zeros(2)
+    v0, v1, v2 = r0 * c00 + r1 * c10 + r2 * c20, r0 * c01 + r1 * c11 + r2 * c21, r0 * c02 + r1 * c12 + r2 * c22
+    f = focal_length_px(camera)
+    c = principal_point_px(camera)[0]
+    col_row = np.array([c + f * v0 / v2, c + f * v1 / v2] if v2 > 0 else [math.nan, math.nan])  # project_camera's
+    return col_row, f * body.radius_m / range_m, phase_deg, towards_sun
 
 
 def body_views(scene: Scene, camera: CameraConfig) -> list[tuple[np.ndarray, float, float, np.ndarray]]:

@@ -6,11 +6,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from contracts.messages import FrameRequest, StepReply
 from scenario import compose
 from scenario.model import Scenario
-from universe.camera import Body, Scene, project_camera, project_inertial
+from universe.camera import Body, Scene, focal_length_px, project_camera, project_inertial
 from universe.config import CameraConfig, CentroidModelConfig, UniverseConfig
 from universe.measurement import MeasurementState, body_view, centroid_measurement, episode_frames
 
@@ -199,3 +201,28 @@ def test_projecting_camera_vectors_equals_projecting_inertial_points() -> None:
     np.testing.assert_array_equal(row, row_c)
     assert math.isnan(col[1]) and math.isnan(project_camera(pts[1], CAMERA)[0])
     assert project_camera(pts[0], CAMERA) == pytest.approx(tuple(pinhole(pts[0])), abs=1e-9)
+
+
+@settings(max_examples=150, deadline=None)
+@given(q=st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4), boresight=st.lists(st.floats(-1.0, 1.0), min_size=3,
+                                                                                       max_size=3),
+       centre=st.lists(st.floats(-1e5, 1e5), min_size=3, max_size=3),
+       sun=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3))
+def test_a_body_views_centre_is_the_projection_of_its_centre(q: list[float], boresight: list[float],
+                                                           centre: list[float], sun: list[float]) -> None:
+    """At any attitude, boresight and place (behind the camera included), the view's centre is ``project_inertial``
+    of the body's centre, and its apparent radius and phase angle are the closed forms'."""
+    if np.linalg.norm(q) < 0.1 or np.linalg.norm(boresight) < 0.1 or np.linalg.norm(sun) < 0.1 \
+            or np.linalg.norm(centre) < 1.0:
+        return
+    camera = CameraConfig(boresight_body=tuple(np.array(boresight) / np.linalg.norm(boresight)))
+    body = Body(centre_inertial_m=np.array(centre), radius_m=82.0)
+    sc = Scene(camera_position_m=np.zeros(3), q_body_to_inertial=np.array(q), body_rate_rad_s=np.zeros(3),
+               exposure_s=0.01, bodies=(body,), sun_direction=np.array(sun))
+    col_row, radius_px, phase_deg, _ = body_view(sc, camera, 0)
+    expected = project_inertial(sc, camera, body.centre_inertial_m)
+    np.testing.assert_array_equal(col_row, np.array(expected, dtype=float))
+    rng = float(np.linalg.norm(centre))
+    assert radius_px == pytest.approx(focal_length_px(camera) * 82.0 / rng, rel=1e-12)
+    cos_phase = -float(sc.sun_direction @ (np.array(centre) / rng))
+    assert phase_deg == pytest.approx(math.degrees(math.acos(min(max(cos_phase, -1.0), 1.0))), abs=1e-7)
