@@ -64,8 +64,8 @@ def body_view(scene: Scene, camera: CameraConfig, index: int,
     towards_sun = np.array([across_col / norm, across_row / norm]) if norm > 1e-12 else np.zeros(2)
     v0, v1, v2 = r0 * c00 + r1 * c10 + r2 * c20, r0 * c01 + r1 * c11 + r2 * c21, r0 * c02 + r1 * c12 + r2 * c22
     f = focal_length_px(camera)
-    c = principal_point_px(camera)[0]
-    col_row = np.array([c + f * v0 / v2, c + f * v1 / v2] if v2 > 0 else [math.nan, math.nan])  # project_camera's
+    cx, cy = principal_point_px(camera)
+    col_row = np.array([cx + f * v0 / v2, cy + f * v1 / v2] if v2 > 0 else [math.nan, math.nan])  # project_camera's
     return col_row, f * body.radius_m / range_m, phase_deg, towards_sun
 
 
