@@ -221,10 +221,10 @@ class Universe:
         bias = sum((np.radians(f.magnitude or 0.0) * np.ones(3) for f in self.faults.active("gyro_bias_step", self.t_s)),
                    np.zeros(3))
         r = self.sensors.measure(self.t_s, self.state, self.dt_s, star_tracker_out=outage, gyro_bias_step_rad_s=bias)
-        sensors = SensorData(
-            star_tracker_q=None if r.star_tracker_q is None else tuple(float(c) for c in r.star_tracker_q),
-            gyro_rad_s=tuple(float(c) for c in r.gyro_rad_s),
-            wheel_speed_rad_s=tuple(float(c) for c in r.wheel_speed_rad_s),
+        sensors = SensorData(  # the readings' arrays as Python floats (tolist: float() of each, at once)
+            star_tracker_q=None if r.star_tracker_q is None else tuple(r.star_tracker_q.tolist()),
+            gyro_rad_s=tuple(r.gyro_rad_s.tolist()),
+            wheel_speed_rad_s=tuple(r.wheel_speed_rad_s.tolist()),
         )
         uplink = tuple(self.link.uplink.arrived(self.t_s))
         meta, blob = (None, b"")
@@ -272,9 +272,10 @@ class Universe:
     def _record_truth(self) -> None:
         self._truth.append(_Period(
             t_s=self.t_s, obt_s=self._obt_s, q=np.array(self.state.q, dtype=float),
-            omega_rad_s=tuple(float(c) for c in self.state.omega_rad_s),
-            wheel_momentum_nms=tuple(float(c) for c in self.dynamics.wheel_momentum_nms(self.state)),
-            wheel_torque_nm=tuple(float(c) for c in self.torque_nm)))
+            # tolist: the same Python floats as float() of each element, without a generator a period
+            omega_rad_s=tuple(np.asarray(self.state.omega_rad_s, dtype=float).tolist()),
+            wheel_momentum_nms=tuple(self.dynamics.wheel_momentum_nms(self.state).tolist()),
+            wheel_torque_nm=tuple(np.asarray(self.torque_nm, dtype=float).tolist())))
 
     def _truth_records(self) -> list[TruthRecord]:
         """The TruthRecords of the periods kept since the last ground step, their geometry computed at once."""
