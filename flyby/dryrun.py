@@ -268,10 +268,10 @@ def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None,
     if jobs <= 1:
         return [_rehearse(t) for t in todo]
     from obsw import kernels
-    from universe import attitude_rk4
+    from universe import kernels as universe_kernels
 
     kernels.warm_up()  # loaded once here (0.4 s a process from Numba's cache), not in each worker forked from here
-    attitude_rk4.warm_up()
+    universe_kernels.warm_up(camera=fidelity == "image")
     if sc.ground.upload_bad_pixel_map:
         compose.ground_bad_pixel_map(sc)  # the cases' one calibration, cached here before the workers fork
     with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:

@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 # each node's own warm-up, as the node calls it before its first period (obsw/node.py, universe/node.py)
 _WARM_UPS = (
     "from obsw import kernels; kernels.warm_up()",
-    "from universe.camera import warm_up; from universe import attitude_rk4; warm_up(); attitude_rk4.warm_up()",
+    "from universe import kernels; kernels.warm_up()",
 )
 _warming: list[subprocess.Popen[bytes]] = []
 

@@ -23,8 +23,8 @@ from contracts.hoptrace import WORK_END, WORK_START, HopTrace
 from contracts.messages import GroundReply, StepReply
 from contracts.runtime import Attachment
 from contracts.shared_blobs import run_folder
-from universe import attitude_rk4, geometry_kernels, sensor_kernels
-from universe.camera import display_png8, warm_up
+from universe import kernels
+from universe.camera import display_png8
 from universe.simulator import Universe
 
 log = logging.getLogger("universe")
@@ -152,10 +152,7 @@ def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, 
             made.append(build())
             wall = WallClock()
             t0 = wall.now()
-            warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
-            attitude_rk4.warm_up()
-            sensor_kernels.warm_up()
-            geometry_kernels.warm_up()
+            kernels.warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
             log.info("camera, dynamics, sensor and geometry kernels ready in %.1f s", wall.now() - t0)
             cfg = made[0].cfg
             frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
