@@ -227,7 +227,7 @@ class FlybyGeometry:
         if not 0.0 < fov_deg < 180.0:
             raise GeometryError(f"fov_deg must be in (0, 180), got {fov_deg}")
         axes = camera_axes_body(np.asarray(boresight_body, dtype=float))
-        scalars, vectors, in_fov = np.empty((t.size, 6)), np.empty((t.size, 4, 3)), np.empty(t.size, dtype=bool)
+        scalars, vectors, in_fov = np.empty((t.size, 5)), np.empty((t.size, 4, 3)), np.empty(t.size, dtype=bool)
         truth_geometry(t, np.ascontiguousarray(q), self._orbit_constants, self.e_ca, self.e_v, self.orbit_e1,
                        self.orbit_e2, self._sun, axes, float(np.tan(np.radians(fov_deg) / 2.0)), scalars, vectors,
                        in_fov)

@@ -34,8 +34,8 @@ def truth_geometry(t: np.ndarray, q: np.ndarray, orbit: np.ndarray, e_ca: np.nda
     ``orbit`` = [C/A time s, C/A distance m, speed m/s, orbit phase at t = 0 rad, mean motion rad/s, Dimorphos's arm
     m, Didymos's arm m]; ``e_ca``, ``e_v`` the C/A and velocity directions, ``e1``, ``e2`` the orbit plane's axes,
     ``sun`` the Sun's direction, ``axes`` (3, 3) the camera's axes in body axes (rows), ``half_tan`` the tangent of
-    half the field of view. Out: ``scalars`` (N, 6) range to Dimorphos and to Didymos m, theta rad, phase angle deg,
-    pointing error rad (and a spare column); ``vectors`` (N, 4, 3) lines of sight to Dimorphos inertial, to Didymos
+    half the field of view. Out: ``scalars`` (N, 5) range to Dimorphos and to Didymos m, theta rad, phase angle deg,
+    pointing error rad; ``vectors`` (N, 4, 3) lines of sight to Dimorphos inertial, to Didymos
     inertial, to Dimorphos in body and in camera axes; ``in_fov`` (N,) Dimorphos's centre in the square field."""
     t_ca, d_ca, speed, phase0, motion, arm_dim, arm_did = (orbit[0], orbit[1], orbit[2], orbit[3], orbit[4],
                                                            orbit[5], orbit[6])
@@ -85,7 +85,6 @@ def truth_geometry(t: np.ndarray, q: np.ndarray, orbit: np.ndarray, e_ca: np.nda
         scalars[n, 2] = _angle(vx, vy, vz, lx, ly, lz)
         scalars[n, 3] = math.degrees(_angle(sun[0], sun[1], sun[2], -lx, -ly, -lz))
         scalars[n, 4] = _angle(sx, sy, sz, lx, ly, lz)
-        scalars[n, 5] = 0.0
         vectors[n, 0, 0], vectors[n, 0, 1], vectors[n, 0, 2] = lx, ly, lz
         vectors[n, 1, 0], vectors[n, 1, 1], vectors[n, 1, 2] = kx, ky, kz
         vectors[n, 2, 0], vectors[n, 2, 1], vectors[n, 2, 2] = ox, oy, oz
@@ -97,4 +96,4 @@ def warm_up() -> None:
     """Compile (or load from the cache) the kernel now: one sample."""
     three = np.array([1.0, 0.0, 0.0])
     truth_geometry(np.zeros(1), np.array([[0.0, 0.0, 0.0, 1.0]]), np.ones(7), three, three, three, three, three,
-                   np.eye(3), 0.1, np.empty((1, 6)), np.empty((1, 4, 3)), np.empty(1, dtype=bool))
+                   np.eye(3), 0.1, np.empty((1, 5)), np.empty((1, 4, 3)), np.empty(1, dtype=bool))
