@@ -477,6 +477,26 @@ class ImagingConfig(Config):
         "this angle, deg: what the prediction does not model, the camera's misalignment to the star tracker "
         "(3 sigma of the 0.02 deg one-sigma boresight dispersion, configs/dispersions/flyby.yaml)",
     )
+    dust_cut_fraction: float = Field(
+        0.5,
+        gt=0,
+        lt=1,
+        description="a Didymos region larger than both bodies' expected lit areas is cut to its pixels whose raw "
+        "signal above the threshold is at least this fraction of its surface's typical signal (the median of its "
+        "brightest Didymos's expected area): a fan of dust merged with it is fainter (the independent generator's "
+        "fans, 0.1-0.7 of the surface's radiance at their source, Dimorphos, fading away from it; bench/imaging.py, "
+        "seeds 1-5: at 0.25 a fan as bright as 0.35 of the surface near its source stayed merged); the cut is kept only "
+        "when it moves the centroid as a dust fan does (dust_shift_tolerance_radii)",
+    )
+    dust_shift_tolerance_radii: float = Field(
+        0.05,
+        ge=0,
+        description="the cut of dust_cut_fraction is kept when it moves the region's centroid across the Sun's "
+        "direction in the image, or away from the Sun, by more than this many predicted radii plus a pixel: cutting "
+        "a lit body's own faint pixels (its terminator and blurred limb, symmetric about the Sun's direction through "
+        "it) moves it toward the Sun only (bench/imaging.py seeds 1-5: at most 0.01 radii across for every body of "
+        "10 px radius and more without dust; 0.08-0.55 radii for the fans that moved Didymos's centre 11-25 px)",
+    )
     limb_fit_max_disagreement_radii: float = Field(
         0.5,
         ge=0,

@@ -34,7 +34,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
   fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
   that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
-  of dust mostly not.
+  of dust mostly not. A Didymos's region still larger than both bodies' expected areas is cut to its pixels whose
+  raw signal is at least ``dust_cut_fraction`` of its surface's (``_without_dust``), the cut kept only when it moves
+  the centroid across the Sun's direction or away from the Sun: a lit body's own faint pixels (terminator, blurred
+  limb) lie symmetrically about the Sun's direction, so cutting them moves it toward the Sun only; dust does not.
   No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
@@ -600,6 +603,41 @@ def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, fi
             if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
 
 
+def _without_dust(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
+    """The candidate parts (``Regions.parts``) of a Didymos region cut to its pixels whose raw signal above the
+    threshold is at least ``dust_cut_fraction`` of its surface's typical signal (the median of its brightest
+    Didymos's expected area), when the cut moves the region's centroid as removing dust does: across the Sun's
+    direction in the image, or away from the Sun, by more than ``dust_shift_tolerance_radii`` of Didymos's predicted
+    radius plus a pixel. A lit body's own faint pixels, its terminator and its blurred limb, lie symmetrically about
+    the Sun's direction through it, so cutting them moves its centroid toward the Sun only, and the cut is not
+    kept (the phase correction expects the whole lit region). [] when the cut is not kept or removes nothing."""
+    assert regions.linear8 is not None
+    sel = regions.pixels_of(blob)
+    vals = regions.values8[sel]
+    n = min(max(1, round(exp.didymos_area)), vals.size)
+    typical = float(np.median(np.partition(vals, vals.size - n)[vals.size - n:]))
+    linear = regions.linear8
+    floor = float(linear[regions.threshold_dn8])
+    surface = float(np.interp(typical, np.arange(linear.size), linear))
+    level = int(np.searchsorted(linear, floor + cfg.dust_cut_fraction * (surface - floor)))  # first code at or above
+    kept = int(np.count_nonzero(vals >= level))
+    if kept == 0 or kept == vals.size:
+        return []
+    parts = [p for p in regions.parts(blob, kept, first_label)
+             if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
+    if not parts:
+        return []
+    body = max(parts, key=lambda b: (b.area_px, -b.label))
+    dc = body.region_centroid_col_row[0] - blob.region_centroid_col_row[0]
+    dr = body.region_centroid_col_row[1] - blob.region_centroid_col_row[1]
+    sc, sr = exp.lit_shift_per_radius
+    norm = math.hypot(sc, sr)
+    # at zero phase the lit disc is whole: any move is dust's
+    along, across = ((dc * sc + dr * sr) / norm, abs(dc * sr - dr * sc) / norm) if norm > 0.0 else (0.0, math.hypot(dc, dr))
+    tolerance = cfg.dust_shift_tolerance_radii * exp.didymos_radius + 1.0
+    return parts if across > tolerance or along < -tolerance else []
+
+
 def _sized_by_didymos(exp: Expected, didymos: Blob, cfg: ImagingConfig) -> Expected:
     """``exp`` with Dimorphos's largest radius and area bounded by Didymos's measured size as well: both bodies are
     at the same range (the orbit is 2 % of it at 55 km), so Dimorphos's apparent radius is at most
@@ -683,6 +721,14 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         # psf_reach_px of its edge) is under a quarter of it: a smaller one, or a close pair blurred together, is
         # mostly fringe
         cut = _surface(regions, didymos, exp, cfg, next_label)
+        if cut:
+            cands = [c for c in cands if c is not didymos] + cut
+            didymos = max(cut, key=lambda b: (b.area_px, -b.label))
+            next_label = max(next_label, max(regions.part_pixels) + 1)
+    if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
+            and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
+        # still larger than Didymos alone: a fan of dust fainter than its surface may be merged with it
+        cut = _without_dust(regions, didymos, exp, cfg, next_label)
         if cut:
             cands = [c for c in cands if c is not didymos] + cut
             didymos = max(cut, key=lambda b: (b.area_px, -b.label))

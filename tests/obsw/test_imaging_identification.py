@@ -438,3 +438,41 @@ def test_dimorphos_with_its_dust_is_not_taken_for_didymos_off_the_edge() -> None
         assert det.didymos is None or math.dist(det.didymos.region_centroid_col_row, truth.centre_512) > 2 * \
             prediction.dimorphos_radius_px, (seed, det.didymos)
     assert checked >= 6
+
+
+@pytest.mark.parametrize(("seed", "k"), [(1, 158), (2, 231), (4, 97), (4, 236), (5, 103)])
+def test_didymos_merged_with_a_fan_across_it_is_cut_to_its_surface(seed: int, k: int) -> None:
+    """A fan of dust merged with Didymos into a region that is mostly its surface: the cut to the pixels of at least
+    half the surface's signal is kept, as it moves the centroid across the Sun's direction, and Didymos is reported
+    within the paper's 15 px, on the OpenCV region cut the same way (bench frames that put it 18-26 px off)."""
+    _assert_found(_bench_trial(seed, k), 0)
+
+
+def test_a_resolved_didymos_with_a_plume_is_reported_within_the_paper_limit() -> None:
+    """On 40 frames of a resolved Didymos (80-360 px across) with a plume, the camera on Dimorphos (the independent
+    generator, a stream apart from the bench's), Didymos is reported as itself within the paper's 15 px of its true
+    centre wherever the frame's edge does not cut it (the stream's frame 33: 15.5 px without the dust cut)."""
+    for seed in range(40):
+        rng = np.random.default_rng([2037, seed])
+        scene = random_scene(rng, didymos_diameter_px=float(rng.uniform(80.0, 360.0)), plume=True,
+                             pointing_error_px=0.0)
+        t = run_trial(scene, seed, prediction_for(scene, rng, 30.0))
+        assert t.didymos.truth_index == 0, seed
+        if t.frame.truth[0].touches_edge:
+            continue
+        assert t.didymos.error_px is not None and t.didymos.error_px <= PAPER_LIMIT_PX, (seed, t.didymos)
+
+
+def test_without_dust_a_resolved_didymos_is_never_cut_to_its_bright_part() -> None:
+    """Without a plume, cutting a lit body's faint pixels moves its centroid toward the Sun only, so the dust cut is
+    never kept: on 16 clean frames of resolved bodies (the independent generator, any shading law, 20-120 deg of
+    phase) Didymos's report equals the report with the cut switched off."""
+    off = CFG.model_copy(update={"dust_shift_tolerance_radii": 1e9})
+    for seed in range(16):
+        rng = np.random.default_rng([2036, seed])
+        scene = random_scene(rng, didymos_diameter_px=float(rng.uniform(60.0, 400.0)), plume=False)
+        prediction = prediction_for(scene, rng, 30.0)
+        frame = render(scene, np.random.default_rng(seed))
+        on_det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
+        off_det = process_frame(frame.pixels, off, bad_pixels=ground_map(scene), prediction=prediction)
+        assert on_det.didymos == off_det.didymos, seed
