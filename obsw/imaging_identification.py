@@ -610,7 +610,8 @@ def _without_dust(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfi
     direction in the image, or away from the Sun, by more than ``dust_shift_tolerance_radii`` of Didymos's predicted
     radius plus a pixel. A lit body's own faint pixels, its terminator and its blurred limb, lie symmetrically about
     the Sun's direction through it, so cutting them moves its centroid toward the Sun only, and the cut is not
-    kept (the phase correction expects the whole lit region). [] when the cut is not kept or removes nothing."""
+    kept (the phase correction expects the whole lit region). The largest part first; [] when the cut is not kept or
+    removes nothing."""
     assert regions.linear8 is not None
     sel = regions.pixels_of(blob)
     vals = regions.values8[sel]
@@ -623,11 +624,12 @@ def _without_dust(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfi
     kept = int(np.count_nonzero(vals >= level))
     if kept == 0 or kept == vals.size:
         return []
-    parts = [p for p in regions.parts(blob, kept, first_label)
-             if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
+    every = regions.parts(blob, kept, first_label)
+    parts = sorted((p for p in every if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation),
+                   key=lambda b: (-b.area_px, b.label))
     if not parts:
-        return []
-    body = max(parts, key=lambda b: (b.area_px, -b.label))
+        return _forget(regions, every)
+    body = parts[0]
     dc = body.region_centroid_col_row[0] - blob.region_centroid_col_row[0]
     dr = body.region_centroid_col_row[1] - blob.region_centroid_col_row[1]
     sc, sr = exp.lit_shift_per_radius
@@ -635,7 +637,15 @@ def _without_dust(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfi
     # at zero phase the lit disc is whole: any move is dust's
     along, across = ((dc * sc + dr * sr) / norm, abs(dc * sr - dr * sc) / norm) if norm > 0.0 else (0.0, math.hypot(dc, dr))
     tolerance = cfg.dust_shift_tolerance_radii * exp.didymos_radius + 1.0
-    return parts if across > tolerance or along < -tolerance else []
+    return parts if across > tolerance or along < -tolerance else _forget(regions, every)
+
+
+def _forget(regions: Regions, parts: list[Blob]) -> list[Blob]:
+    """[] once the pixels of parts not kept are forgotten: the labels of later cuts, and so their order, are those
+    of a frame where the parts were never cut."""
+    for p in parts:
+        regions.part_pixels.pop(p.label, None)
+    return []
 
 
 def _sized_by_didymos(exp: Expected, didymos: Blob, cfg: ImagingConfig) -> Expected:
@@ -728,10 +738,11 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
             and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
         # still larger than Didymos alone: a fan of dust fainter than its surface may be merged with it
-        cut = _without_dust(regions, didymos, exp, cfg, next_label)
+        cut = _without_dust(regions, didymos, exp, cfg, max(next_label, max(regions.part_pixels, default=0) + 1))
         if cut:
-            cands = [c for c in cands if c is not didymos] + cut
-            didymos = max(cut, key=lambda b: (b.area_px, -b.label))
+            # the other parts are dust brighter than the cut's level: not candidates for Dimorphos
+            cands = [c for c in cands if c is not didymos] + cut[:1]
+            didymos = cut[0]
             next_label = max(next_label, max(regions.part_pixels) + 1)
     if exp is not None:
         exp = _sized_by_didymos(exp, didymos, cfg)
