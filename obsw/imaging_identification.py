@@ -589,7 +589,9 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
         return cands, likely, didymos, next_label
     cands = [c for c in cands if c is not didymos] + parts
     likely = [c for c in likely if c is not didymos] + parts
-    return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), next_label + len(parts)
+    # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one
+    return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), \
+        max(next_label, max(regions.part_pixels) + 1)
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
@@ -755,7 +757,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
         pieces = [p for p in regions.within(root, place.col_row, place.radius_px, next_label)
                   if p.area_px >= cfg.min_body_area_px]
-        next_label += len(pieces)
+        next_label = max(next_label, max(regions.part_pixels, default=0) + 1)
         if pieces:
             piece = trimmed(regions, max(pieces, key=lambda b: (b.area_px, -b.label)), round(exp.dimorphos_area),
                             next_label, place)

@@ -28,7 +28,16 @@ from tests.obsw.opencv_reference import reference_pipeline
 from obsw.config import ImagingConfig
 from obsw.imaging import Detections, FramePrediction, process_frame
 from obsw.imaging_filtering import linear_values
-from obsw.imaging_identification import Blob, Regions, _relative_jump_px, expected, identify_bodies, light_spread_px2
+from obsw.imaging_identification import (
+    Blob,
+    Expected,
+    Regions,
+    _relative_jump_px,
+    _split,
+    expected,
+    identify_bodies,
+    light_spread_px2,
+)
 from obsw.imaging_labelling import connected_components
 
 CFG = ImagingConfig()
@@ -476,3 +485,29 @@ def test_without_dust_a_resolved_didymos_is_never_cut_to_its_bright_part() -> No
         on_det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
         off_det = process_frame(frame.pixels, off, bad_pixels=ground_map(scene), prediction=prediction)
         assert (on_det.didymos, on_det.dimorphos) == (off_det.didymos, off_det.dimorphos), seed
+
+
+def test_a_split_hands_on_a_label_past_every_part_it_cut() -> None:
+    """Cutting a region into parts, the split hands on a label past every part it labelled, those too small to be a
+    body too, so a later cut never takes a kept part's label (and with it the part's pixels): a region whose brightest
+    pixels are a lone pixel first in raster order, then two 6x6 blocks, joined by faint pixels."""
+    image8 = np.zeros((40, 40), dtype=np.uint8)
+    image8[2, 2:34] = 20  # the faint frame joining everything
+    image8[2:17, 2] = 20
+    image8[16, 2:34] = 20
+    image8[2:17, 33] = 20
+    image8[10:16, 5:11] = 150
+    image8[10:16, 25:31] = 150
+    image8[10:16, 3:5] = 20
+    image8[10:16, 11:25] = 20
+    image8[10:16, 31:33] = 20
+    image8[2, 2] = 200
+    comps = connected_components(image8 > 10)
+    assert comps.area_px.size == 1
+    regions = Regions(comps, image8.reshape(-1)[comps.pixel_index], 40, 10, linear8=linear_values(CFG, 12))
+    (blob,) = regions.blobs()
+    exp = Expected(didymos_area=60.0, dimorphos_area=13.0, didymos_area_max=80.0, dimorphos_area_max=20.0,
+                   didymos_radius_max=6.0, dimorphos_radius_max=3.0, orbit_radius_max=30.0)
+    _, _, _, next_label = _split(regions, blob, [blob], [blob], exp, None, None, CFG, 2)
+    assert sorted(regions.part_pixels) == [2, 3, 4]
+    assert next_label > max(regions.part_pixels)
