@@ -485,8 +485,8 @@ class ImagingConfig(Config):
         "signal above the threshold is at least this fraction of its surface's typical signal (the median of its "
         "brightest Didymos's expected area): a fan of dust merged with it is fainter (the independent generator's "
         "fans, 0.1-0.7 of the surface's radiance at their source, Dimorphos, fading away from it; bench/imaging.py, "
-        "seeds 1-5: at 0.25 a fan as bright as 0.35 of the surface near its source stayed merged); the cut is kept only "
-        "when it moves the centroid as a dust fan does (dust_shift_tolerance_radii)",
+        "seeds 1-5: at 0.25 a fan as bright as 0.35 of the surface near its source stayed merged); the cut is kept "
+        "only when it moves the centroid as a dust fan does (dust_shift_tolerance_radii)",
     )
     dust_shift_tolerance_radii: float = Field(
         0.05,

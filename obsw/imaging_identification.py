@@ -606,7 +606,7 @@ def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, fi
 
 
 def _without_dust(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
-    """The candidate parts (``Regions.parts``) of a Didymos region cut to its pixels whose raw signal above the
+    """The parts (``Regions.parts``) of a Didymos region cut to its pixels whose raw signal above the
     threshold is at least ``dust_cut_fraction`` of its surface's typical signal (the median of its brightest
     Didymos's expected area), when the cut moves the region's centroid as removing dust does: across the Sun's
     direction in the image, or away from the Sun, by more than ``dust_shift_tolerance_radii`` of Didymos's predicted
@@ -636,8 +636,10 @@ def _without_dust(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfi
     dr = body.region_centroid_col_row[1] - blob.region_centroid_col_row[1]
     sc, sr = exp.lit_shift_per_radius
     norm = math.hypot(sc, sr)
-    # at zero phase the lit disc is whole: any move is dust's
-    along, across = ((dc * sc + dr * sr) / norm, abs(dc * sr - dr * sc) / norm) if norm > 0.0 else (0.0, math.hypot(dc, dr))
+    if norm > 0.0:
+        along, across = (dc * sc + dr * sr) / norm, abs(dc * sr - dr * sc) / norm
+    else:  # at zero phase the lit disc is whole: any move is dust's
+        along, across = 0.0, math.hypot(dc, dr)
     tolerance = cfg.dust_shift_tolerance_radii * exp.didymos_radius + 1.0
     return parts if across > tolerance or along < -tolerance else _forget(regions, every)
 
