@@ -171,6 +171,11 @@ class Regions:
         disc = (float(centre_col_row[0]), float(centre_col_row[1]), float(radius_px))
         return self._cut(blob, sel[inside], self.threshold_dn8, first_label, disc)
 
+    def free_label(self, at_least: int) -> int:
+        """The first label from ``at_least`` on past every part cut so far: a cut labelled from it takes no kept
+        part's label (and with it the part's pixels)."""
+        return max(at_least, max(self.part_pixels, default=0) + 1)
+
     def _cut(self, blob: Blob, sel: np.ndarray, threshold_dn8: int, first_label: int,
              cut: int | tuple[float, float, float]) -> list[Blob]:
         """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order) of a blob,
@@ -591,7 +596,7 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     likely = [c for c in likely if c is not didymos] + parts
     # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one
     return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), \
-        max(next_label, max(regions.part_pixels) + 1)
+        regions.free_label(next_label)
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
@@ -738,16 +743,16 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         if cut:
             cands = [c for c in cands if c is not didymos] + cut
             didymos = max(cut, key=lambda b: (b.area_px, -b.label))
-            next_label = max(next_label, max(regions.part_pixels) + 1)
+            next_label = regions.free_label(next_label)
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
             and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
         # still larger than Didymos alone: a fan of dust fainter than its surface may be merged with it
-        cut = _without_dust(regions, didymos, exp, cfg, max(next_label, max(regions.part_pixels, default=0) + 1))
+        cut = _without_dust(regions, didymos, exp, cfg, regions.free_label(next_label))
         if cut:
             # the other parts are dust brighter than the cut's level: not candidates for Dimorphos
             cands = [c for c in cands if c is not didymos] + cut[:1]
             didymos = cut[0]
-            next_label = max(next_label, max(regions.part_pixels) + 1)
+            next_label = regions.free_label(next_label)
     if exp is not None:
         exp = _sized_by_didymos(exp, didymos, cfg)
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
@@ -759,11 +764,11 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
         pieces = [p for p in regions.within(root, place.col_row, place.radius_px, next_label)
                   if p.area_px >= cfg.min_body_area_px]
-        next_label = max(next_label, max(regions.part_pixels, default=0) + 1)
+        next_label = regions.free_label(next_label)
         if pieces:
             piece = trimmed(regions, max(pieces, key=lambda b: (b.area_px, -b.label)), round(exp.dimorphos_area),
                             next_label, place)
-            next_label = max(next_label, max(regions.part_pixels) + 1)
+            next_label = regions.free_label(next_label)
             c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
             centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
             if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:

@@ -152,9 +152,11 @@ def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, 
             made.append(build())
             wall = WallClock()
             t0 = wall.now()
-            kernels.warm_up()  # compiled code: seconds on the first run after an install, before any frame is due
-            log.info("camera, dynamics, sensor and geometry kernels ready in %.1f s", wall.now() - t0)
             cfg = made[0].cfg
+            # compiled code: seconds on the first run after an install, before any frame is due (no camera at
+            # centroid level: nothing is rendered)
+            kernels.warm_up(camera=cfg.fidelity == "image")
+            log.info("camera, dynamics, sensor and geometry kernels ready in %.1f s", wall.now() - t0)
             frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
             try:
                 run(bus, made[0], bus_cfg, realtime, WallClock(), frames)
