@@ -13,7 +13,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
 - **Didymos** is the candidate holding the most light in Didymos's expected area (``aperture_dn8``: its brightest
   pixels of that number above the threshold), among those within the orbit's reach of Dimorphos's predicted place;
   when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
-  source (``light_spread_px2``: a star brighter than a small Didymos); without a prediction, the largest. With a
+  source (``light_spread_px2``: a star brighter than a small Didymos). When it need not be, shape cannot tell it
+  from a star: with Dimorphos's place known, the candidate of most light times the Gaussian likelihood of its
+  distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates first when
+  Didymos may be resolved (a star never is); without a prediction, the largest. With a
   pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
   of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
@@ -390,21 +393,40 @@ def _largest(blobs: list[Blob]) -> Blob:
     return max(blobs, key=lambda b: (b.area_px, b.peak_dn8, -b.label))
 
 
-def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig) -> Blob:
+def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
+                  place: _Place | None) -> Blob:
     """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
     fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
-    however bright (a star: ``_extended``); without sizes, the largest."""
+    however bright (a star: ``_extended``); when it need not be, with Dimorphos's place known, the most likely
+    (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest."""
     if exp is None or regions is None:
         return _largest(blobs)
     n = round(exp.didymos_area)
     lights = apertures_dn8(regions, blobs, n)
+    resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
+    if not resolved and place is not None and len(blobs) > 1:
+        # a star is a point source: when Didymos may be resolved, an extended candidate comes first
+        may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
+        first = [may and not _point_source(regions, b, cfg) for b in blobs]
+        scores = [_point_likelihood(b, light, place, exp) for b, light in zip(blobs, lights, strict=True)]
+        return blobs[max(range(len(blobs)),
+                         key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))]
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
-    if _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg) \
-            and _point_source(regions, blobs[best], cfg):
+    if resolved and _point_source(regions, blobs[best], cfg):
         # a star brighter than a small Didymos: the brightest extended candidate, if any
         best = max([i for i, b in enumerate(blobs) if not _point_source(regions, b, cfg)] or range(len(blobs)),
                    key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     return blobs[best]
+
+
+def _point_likelihood(blob: Blob, light: float, place: _Place, exp: Expected) -> float:
+    """Log of how likely a blob is an unresolved Didymos rather than a star, up to a constant: its light times the
+    Gaussian likelihood of its distance from Dimorphos's place beyond the orbit's radius (the place's error one
+    ``_Place.sigma_px``). Shape cannot tell a point-like Didymos from a star, and stars are scattered over the
+    image whatever the place; weighing the light by itself follows from star counts falling as the square of the
+    flux (the sky's Euclidean count falls as its 2.5th power), Didymos's flux being unknown."""
+    beyond = max(0.0, _distance(blob.region_centroid_col_row, place.col_row) - exp.orbit_radius_max)
+    return math.log(max(light, 1e-9)) - 0.5 * (beyond / place.sigma_px) ** 2
 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
@@ -446,9 +468,9 @@ def _with_companion(likely: list[Blob], cands: list[Blob], predicted: tuple[floa
 
 
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
-                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None) -> Blob:
+                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None, place: _Place | None) -> Blob:
     """Didymos among the ``likely`` candidates (see the module docstring); ``cands`` are all candidates."""
-    didymos = _best_didymos(likely, exp, regions, cfg)
+    didymos = _best_didymos(likely, exp, regions, cfg, place)
     if prev_did is not None and prev_dim is not None:
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         paired = _with_companion(likely, cands, _relative(prev_dim, prev_did), cfg, exp)
@@ -462,16 +484,18 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
             paired = [c for c, light in zip(paired, apertures_dn8(regions, paired, n), strict=True)
                       if light >= least or c.mean_dn8 - regions.threshold_dn8 >= surface]
         if paired:
-            didymos = _best_didymos(paired, exp, regions, cfg)
+            didymos = _best_didymos(paired, exp, regions, cfg, place)
     return didymos
 
 
 @dataclass(frozen=True, slots=True)
 class _Place:
-    """Where the trajectory puts Dimorphos: the point, and the radius around it Dimorphos's region centroid is in."""
+    """Where the trajectory puts Dimorphos: the point, the radius around it Dimorphos's region centroid is in, and
+    the place's one-sigma error."""
 
     col_row: tuple[float, float]
     radius_px: float
+    sigma_px: float
 
 
 def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: ImagingConfig) -> _Place | None:
@@ -479,8 +503,10 @@ def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: Imagin
     if exp is None or prediction is None or prediction.dimorphos_col_row is None \
             or prediction.dimorphos_uncertainty_px is None or not math.isfinite(prediction.dimorphos_uncertainty_px):
         return None
+    # the uncertainty spans prediction_sigma sigmas; never tighter than a centroid's own jitter
     return _Place(prediction.dimorphos_col_row,
-                  prediction.dimorphos_uncertainty_px + exp.dimorphos_radius_max + cfg.centroid_noise_px)
+                  prediction.dimorphos_uncertainty_px + exp.dimorphos_radius_max + cfg.centroid_noise_px,
+                  max(prediction.dimorphos_uncertainty_px, cfg.centroid_noise_px) / cfg.prediction_sigma)
 
 
 def _didymos_may_be_out(place: _Place, exp: Expected, n: int) -> bool:
@@ -594,8 +620,9 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
         return cands, likely, didymos, next_label
     cands = [c for c in cands if c is not didymos] + parts
     likely = [c for c in likely if c is not didymos] + parts
-    # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one
-    return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions), \
+    # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one;
+    # the place chose the region among stars, not between its parts (Didymos, Dimorphos and ejecta, all there)
+    return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, None), \
         regions.free_label(next_label)
 
 
@@ -709,7 +736,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         likely = [c for c in cands if _box_distance(c, place.col_row) <= reach]
         if not likely:
             return None, None
-    didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions)
+    didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
     if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
             and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max) \

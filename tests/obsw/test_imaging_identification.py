@@ -511,3 +511,33 @@ def test_a_split_hands_on_a_label_past_every_part_it_cut() -> None:
     _, _, _, next_label = _split(regions, blob, [blob], [blob], exp, None, None, CFG, 2)
     assert sorted(regions.part_pixels) == [2, 3, 4]
     assert next_label > max(regions.part_pixels)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_an_unresolved_didymos_at_its_place_is_not_a_brighter_star_beyond_it(seed: int) -> None:
+    """Didymos 2-4 px across at full resolution (a point source binned), Dimorphos's place known to 3 px (one
+    sigma), a 3000 DN star within the search's reach but 4 sigma beyond the orbit's radius: Didymos is reported, not
+    the brighter star (the place makes the star unlikely, whatever its light)."""
+    rng = np.random.default_rng([64, seed])
+    scene = random_scene(rng, didymos_diameter_px=float(rng.uniform(2.0, 4.0)), faint=True, plume=False, n_hot=0,
+                         n_cosmic=0, pointing_error_px=0.0)
+    prediction = prediction_for(scene, rng, 3.0)
+    dim = scene.bodies[1]
+    place = ((dim.col - 0.5) / 2.0, (dim.row - 0.5) / 2.0)  # full resolution to binned px
+    prediction = replace(prediction, dimorphos_col_row=place, dimorphos_uncertainty_px=9.0)
+    assert prediction.orbit_radius_max_px is not None
+    a = rng.uniform(0.0, 2.0 * math.pi)
+    d = prediction.orbit_radius_max_px + 4.0 * 3.0  # binned px from Dimorphos
+    scene = replace(scene, stars=((dim.col + 2.0 * d * math.cos(a), dim.row + 2.0 * d * math.sin(a), 3000.0),),
+                    defects=Defects())
+    t = run_trial(scene, seed, prediction)
+    assert t.didymos.truth_index == 0
+    assert t.didymos.error_px is not None and t.didymos.error_px <= PAPER_LIMIT_PX
+
+
+@pytest.mark.parametrize(("seed", "k"), [(1, 69), (1, 146), (1, 206), (1, 270), (1, 299)])
+def test_an_unresolved_didymos_is_the_likeliest_candidate_not_the_brightest_star(seed: int, k: int) -> None:
+    """Didymos 1.1-2.8 px across, stars as bright or brighter within the search's reach: Didymos is reported, on
+    its light weighed by how far it is from the place and, when it may be resolved, first among extended blobs
+    (bench frames that reported a star)."""
+    _assert_found(_bench_trial(seed, k), 0)
