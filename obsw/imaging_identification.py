@@ -48,8 +48,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   bright like a body (the light of its best-lit quarter of Dimorphos's expected area at least
   ``dimorphos_min_peak_fraction`` of Didymos's; without a prediction, its peak) and not a piece of Didymos's thin
   crescent (beside its box and on its disc). The one continuing the last pair's relative offset wins; else the one
-  holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved
-  (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of Didymos).
+  holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved; when
+  it need not be, with its place known, the likeliest as for Didymos, at the place itself (without a prediction: the
+  largest up to ``dimorphos_max_area_fraction`` of Didymos).
 - **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
   its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
   the radius of a disc whose lit part has the region's area).
@@ -405,12 +406,8 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     lights = apertures_dn8(regions, blobs, n)
     resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
     if not resolved and place is not None and len(blobs) > 1:
-        # a star is a point source: when Didymos may be resolved, an extended candidate comes first
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
-        first = [may and not _point_source(regions, b, cfg) for b in blobs]
-        scores = [_point_likelihood(b, light, place, exp) for b, light in zip(blobs, lights, strict=True)]
-        return blobs[max(range(len(blobs)),
-                         key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))]
+        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     if resolved and _point_source(regions, blobs[best], cfg):
         # a star brighter than a small Didymos: the brightest extended candidate, if any
@@ -419,14 +416,25 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     return blobs[best]
 
 
-def _point_likelihood(blob: Blob, light: float, place: _Place, exp: Expected) -> float:
-    """Log of how likely a blob is an unresolved Didymos rather than a star, up to a constant: its light times the
-    Gaussian likelihood of its distance from Dimorphos's place beyond the orbit's radius (the place's error one
-    ``_Place.sigma_px``). Shape cannot tell a point-like Didymos from a star, and stars are scattered over the
-    image whatever the place; weighing the light by itself follows from star counts falling as the square of the
-    flux (the sky's Euclidean count falls as its 2.5th power), Didymos's flux being unknown."""
-    beyond = max(0.0, _distance(blob.region_centroid_col_row, place.col_row) - exp.orbit_radius_max)
+def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) -> float:
+    """Log of how likely a blob is an unresolved body rather than a star, up to a constant: its light times the
+    Gaussian likelihood of its distance from Dimorphos's place beyond ``reach_px`` (the body's largest distance from
+    Dimorphos: the orbit's radius for Didymos, none for Dimorphos; the place's error one ``_Place.sigma_px``). Shape
+    cannot tell a point-like body from a star, and stars are scattered over the image whatever the place; weighing
+    the light by itself follows from star counts falling as the square of the flux (the sky's Euclidean count falls
+    as its 2.5th power), the body's flux being unknown."""
+    beyond = max(0.0, _distance(blob.region_centroid_col_row, place.col_row) - reach_px)
     return math.log(max(light, 1e-9)) - 0.5 * (beyond / place.sigma_px) ** 2
+
+
+def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: float, may_be_resolved: bool,
+               regions: Regions, cfg: ImagingConfig) -> Blob:
+    """The blob of highest ``_point_likelihood`` (ties: more light, larger, first), extended blobs first when the
+    body may be resolved: a star is a point source."""
+    first = [may_be_resolved and not _point_source(regions, b, cfg) for b in blobs]
+    scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
+    return blobs[max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px,
+                                                      -blobs[i].label))]
 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
@@ -606,6 +614,10 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
                                          key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
     if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
         return next((b for b in ranked if not _point_source(regions, b, cfg)), None)
+    if place is not None and len(in_gate) > 1:
+        # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself
+        may = _must_be_resolved(exp.dimorphos_radius * exp.radius_factor_max, regions, cfg)
+        return _likeliest(in_gate, lights, place, 0.0, may, regions, cfg)
     return ranked[0]
 
 

@@ -541,3 +541,9 @@ def test_an_unresolved_didymos_is_the_likeliest_candidate_not_the_brightest_star
     its light weighed by how far it is from the place and, when it may be resolved, first among extended blobs
     (bench frames that reported a star)."""
     _assert_found(_bench_trial(seed, k), 0)
+
+
+def test_an_unresolved_dimorphos_in_the_glow_is_not_a_star_as_bright_farther_from_its_place() -> None:
+    """Dimorphos 3.8 px across in the plume's glow, its place known to 90 px, a star as bright in Dimorphos's
+    expected area 88 px from the place (Dimorphos's region 34 px): Dimorphos is reported (bench seed 4, frame 294)."""
+    _assert_found(_bench_trial(4, 294), 1)
