@@ -21,8 +21,8 @@ and the bad-pixel map ground would upload (dead pixels and columns, half the hot
   bodies of 3 px and more), each with its classes (``imaging_trials.failure_classes``: small, faint, phase, edge,
   close pair, plume, unrecognised trajectory; and what was reported instead);
 - one defect more (a saturated hot pixel or a 6 px cosmic ray on Didymos, on Dimorphos, or anywhere; same noise):
-  reports whose body changed (to another body or to none), those of bodies the chain must find (as for detection)
-  counted apart;
+  reports whose body changed to another blob, and bodies found or lost, each listed, those of bodies the chain must
+  find (as for detection) counted apart;
 - centroids: distance from the OpenCV region centroid of the same blob; distance from the true centre of correctly
   reported bodies not cut by the frame's edge, before and after the phase correction.
 
@@ -101,7 +101,8 @@ class Tally:
     far: list[str] = field(default_factory=list)
     changed: list[str] = field(default_factory=list)
     changed_must: int = 0  # of bodies the chain must find (``visible``): at least 3 px, bright, apart
-    lost_found: int = 0
+    lost_found: list[str] = field(default_factory=list)
+    lost_found_must: int = 0  # of bodies the chain must find
     trials: int = 0
 
     def merge(self, other: Tally) -> None:
@@ -111,9 +112,9 @@ class Tally:
                 self.found[i][j] += other.found[i][j]
                 self.swallowed_found[i][j] += other.swallowed_found[i][j]
             self.errors[i] += other.errors[i]
-        for name in ("misses", "wrong", "opencv", "far", "changed"):
+        for name in ("misses", "wrong", "opencv", "far", "changed", "lost_found"):
             getattr(self, name).extend(getattr(other, name))
-        for name in ("wrong_small", "changed_must", "lost_found", "trials"):
+        for name in ("wrong_small", "changed_must", "lost_found_must", "trials"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
@@ -158,14 +159,16 @@ def frame_tally(seed: int, k: int, defects: bool) -> Tally:
         for i in (0, 1):
             if got[i] == base[i]:
                 continue
+            must = visible(t.frame, i)
+            size = t.frame.truth[i].diameter_512_px
+            line = (f"frame {k}: {kind} on {target}: {NAMES[i]} ({size:.2f} px"
+                    f"{'' if must else ', not one the chain must find'}) {base[i]} -> {got[i]}")
             if got[i] is not None and base[i] is not None:
-                must = visible(t.frame, i)
                 out.changed_must += must
-                size = t.frame.truth[i].diameter_512_px
-                out.changed.append(f"frame {k}: {kind} on {target}: {NAMES[i]} ({size:.2f} px"
-                                   f"{'' if must else ', not one the chain must find'}) {base[i]} -> {got[i]}")
+                out.changed.append(line)
             else:
-                out.lost_found += 1
+                out.lost_found_must += must
+                out.lost_found.append(line)
     return out
 
 
@@ -210,8 +213,8 @@ def _print_tally(t: Tally, n: int, seed: int, defects: bool) -> None:
     if defects:
         print(f"  one defect more, {t.trials} trials x 2 bodies: {len(t.changed)} reports changed to another blob "
               f"({t.changed_must} of bodies the chain must find, {len(t.changed) - t.changed_must} of smaller or "
-              f"fainter ones), {t.lost_found} found or lost")
-        for line in t.changed:
+              f"fainter ones), {len(t.lost_found)} found or lost ({t.lost_found_must} of bodies the chain must find)")
+        for line in t.changed + t.lost_found:
             print(f"    {line}")
     beyond = sum(1 for d in t.opencv if d > 2.0)
     print(f"  centroid vs the OpenCV region centroid of the same blob: {len(t.opencv)} reports, max "
