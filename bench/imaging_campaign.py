@@ -22,6 +22,7 @@ import json
 import math
 import os
 import sys
+import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -115,8 +116,17 @@ def main() -> int:
     ks = list(range(args.runs)) if args.only is None else sorted(set(args.only))
     if any(k < 0 for k in ks):
         ap.error("--only: run numbers start at 0")
+    results = []
+    t0 = time.monotonic()
     with ProcessPoolExecutor(max_workers=max(1, min(args.jobs, os.cpu_count() or 1))) as pool:
-        results = list(pool.map(run, ks, [args.seed] * len(ks), [correction] * len(ks)))
+        for r in pool.map(run, ks, [args.seed] * len(ks), [correction] * len(ks)):
+            results.append(r)
+            # progress on stderr, in run order: runs done, those missing a requirement, time left
+            done, failed = len(results), sum(1 for x in results if not x["all_pass"])
+            left = (time.monotonic() - t0) / done * (len(ks) - done)
+            print(f"\r  runs {done}/{len(ks)}, {failed} failing, about {left:.0f} s left ", end="",
+                  file=sys.stderr, flush=True)
+    print(file=sys.stderr)
     worst = np.array([r["worst_centroid_px"] for r in results if r["worst_centroid_px"] is not None])
     print(f"Dispersed campaign: {len(results)} nominal flybys, detector on, phase correction "
           f"{'on' if correction else 'off'} (campaign seed {args.seed})")
