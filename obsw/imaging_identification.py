@@ -398,7 +398,7 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
                   place: _Place | None) -> Blob:
     """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
     fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
-    however bright (a star: ``_extended``); when it need not be, with Dimorphos's place known, the most likely
+    however bright (a star: ``_point_source``); when it need not be, with Dimorphos's place known, the most likely
     (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest."""
     if exp is None or regions is None:
         return _largest(blobs)
@@ -424,6 +424,8 @@ def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) 
     the light by itself follows from star counts falling as the square of the flux (the sky's Euclidean count falls
     as its 2.5th power), the body's flux being unknown."""
     beyond = max(0.0, _distance(blob.region_centroid_col_row, place.col_row) - reach_px)
+    if place.sigma_px <= 0.0:  # a place known exactly (no uncertainty, no jitter allowed): only there
+        return math.log(max(light, 1e-9)) if beyond == 0.0 else -math.inf
     return math.log(max(light, 1e-9)) - 0.5 * (beyond / place.sigma_px) ** 2
 
 

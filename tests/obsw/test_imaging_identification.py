@@ -32,6 +32,8 @@ from obsw.imaging_identification import (
     Blob,
     Expected,
     Regions,
+    _Place,
+    _point_likelihood,
     _relative_jump_px,
     _split,
     expected,
@@ -547,3 +549,14 @@ def test_an_unresolved_dimorphos_in_the_glow_is_not_a_star_as_bright_farther_fro
     """Dimorphos 3.8 px across in the plume's glow, its place known to 90 px, a star as bright in Dimorphos's
     expected area 88 px from the place (Dimorphos's region 34 px): Dimorphos is reported (bench seed 4, frame 294)."""
     _assert_found(_bench_trial(4, 294), 1)
+
+
+def test_a_place_known_exactly_ranks_candidates_without_dividing_by_zero() -> None:
+    """Dimorphos's place with no uncertainty and no centroid jitter allowed (both zero, as a config may say): a blob
+    within the reach of the place scores its light, one beyond it can never be chosen (no division by the zero
+    sigma)."""
+    place = _Place((100.0, 100.0), 5.0, 0.0)
+    near = Blob(1, 4, (101.0, 100.0), (100, 99, 2, 2), 80.0, 90, 1.0, 50, region_centroid_col_row=(101.0, 100.0))
+    far = near._replace(label=2, region_centroid_col_row=(120.0, 100.0))
+    assert _point_likelihood(near, 30.0, place, 2.0) == math.log(30.0)
+    assert _point_likelihood(far, 3000.0, place, 2.0) == -math.inf
