@@ -117,12 +117,13 @@ def main() -> int:
     if any(k < 0 for k in ks):
         ap.error("--only: run numbers start at 0")
     results = []
+    failed = 0
     t0 = time.monotonic()
     with ProcessPoolExecutor(max_workers=max(1, min(args.jobs, os.cpu_count() or 1))) as pool:
         for r in pool.map(run, ks, [args.seed] * len(ks), [correction] * len(ks)):
             results.append(r)
             # progress on stderr, in run order: runs done, those missing a requirement, time left
-            done, failed = len(results), sum(1 for x in results if not x["all_pass"])
+            done, failed = len(results), failed + (not r["all_pass"])
             left = (time.monotonic() - t0) / done * (len(ks) - done)
             print(f"\r  runs {done}/{len(ks)}, {failed} failing, about {left:.0f} s left ", end="",
                   file=sys.stderr, flush=True)

@@ -424,9 +424,10 @@ def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) 
     the light by itself follows from star counts falling as the square of the flux (the sky's Euclidean count falls
     as its 2.5th power), the body's flux being unknown."""
     beyond = max(0.0, _distance(blob.region_centroid_col_row, place.col_row) - reach_px)
+    log_light = math.log(max(light, 1e-9))
     if place.sigma_px <= 0.0:  # a place known exactly (no uncertainty, no jitter allowed): only there
-        return math.log(max(light, 1e-9)) if beyond == 0.0 else -math.inf
-    return math.log(max(light, 1e-9)) - 0.5 * (beyond / place.sigma_px) ** 2
+        return log_light if beyond == 0.0 else -math.inf
+    return log_light - 0.5 * (beyond / place.sigma_px) ** 2
 
 
 def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: float, may_be_resolved: bool,
@@ -612,15 +613,15 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     # when it must be resolved, never a point source (a star, however bright: Dimorphos hidden or merged with Didymos)
     n = round(exp.dimorphos_area)
     lights = apertures_dn8(regions, in_gate, n)
-    ranked = [in_gate[i] for i in sorted(range(len(in_gate)), reverse=True,
-                                         key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
     if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
-        return next((b for b in ranked if not _point_source(regions, b, cfg)), None)
+        ranked = sorted(range(len(in_gate)), reverse=True,
+                        key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))
+        return next((in_gate[i] for i in ranked if not _point_source(regions, in_gate[i], cfg)), None)
     if place is not None and len(in_gate) > 1:
         # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself
         may = _must_be_resolved(exp.dimorphos_radius * exp.radius_factor_max, regions, cfg)
         return _likeliest(in_gate, lights, place, 0.0, may, regions, cfg)
-    return ranked[0]
+    return in_gate[max(range(len(in_gate)), key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
 
 
 def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob], exp: Expected,

@@ -156,7 +156,8 @@ def main(conf: zenoh.Config, build: Callable[[], Universe], bus_cfg: BusConfig, 
             # compiled code: seconds on the first run after an install, before any frame is due (no camera at
             # centroid level: nothing is rendered)
             kernels.warm_up(camera=cfg.fidelity == "image")
-            log.info("camera, dynamics, sensor and geometry kernels ready in %.1f s", wall.now() - t0)
+            log.info("%sdynamics, sensor and geometry kernels ready in %.1f s",
+                     "camera, " if cfg.fidelity == "image" else "", wall.now() - t0)
             frames = FrameWriter(out / "frames", cfg.save_frames_every, cfg.camera.bit_depth)
             try:
                 run(bus, made[0], bus_cfg, realtime, WallClock(), frames)
