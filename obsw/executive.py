@@ -76,7 +76,8 @@ class Activation:
 
     def of(self, kind: EventKind) -> list[Event]:
         """This run's events of ``kind``, in dispatch order."""
-        return [e for e in self.events if e.kind == kind]
+        # most runs have no events: no comprehension to set up (kinds are enumeration members: identity)
+        return [e for e in self.events if e.kind is kind] if self.events else []
 
 
 Handler = Callable[[Activation], Work]

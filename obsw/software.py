@@ -361,7 +361,7 @@ class FlightSoftware:
 
     def _observe(self, run: Run) -> None:
         """After each run: the torques' actuation time, the latencies of the measurement used, overrun events."""
-        if run.task == Task.CONTROL:
+        if run.task is Task.CONTROL:
             tick = self._tick_s()
             self._actuation_delay_s = min(max(run.finish_s - tick, 0.0), self.cfg.control_period_s)
             used = [e for e in run.events if e.kind == EventKind.MEASUREMENT]
@@ -372,12 +372,13 @@ class FlightSoftware:
                 self._centroid_to_torque_s = run.finish_s - latest.time_s
         if not run.ran:
             return
-        if run.overrun and not self._overrunning[run.task]:
+        overrun = run.finish_s > run.deadline_s  # run.overrun, as it ran
+        if overrun and not self._overrunning[run.task]:
             late = run.finish_s - run.deadline_s
             self._event(pus.TaskOverrunEvent(task=run.task, minor_frame=run.minor_frame, execution_s=run.execution_s,
                                              late_s=late), run.deadline_s,
                         f"{run.task.name} overran its slot by {late * 1e3:.1f} ms in minor frame {run.minor_frame}")
-        self._overrunning[run.task] = run.overrun
+        self._overrunning[run.task] = overrun
 
     def _task_time(self, act: Activation) -> Work:
         """Time management: an OBT step beyond the control period is reported; a time report when due."""
