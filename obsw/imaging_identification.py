@@ -13,8 +13,12 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
 - **Didymos** is the candidate holding the most light in Didymos's expected area (``aperture_dn8``: its brightest
   pixels of that number above the threshold), among those within the orbit's reach of Dimorphos's predicted place;
   when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
-  source (``light_spread_px2``: a star brighter than a small Didymos). When it need not be, shape cannot tell it
-  from a star: with Dimorphos's place known, the candidate of most light times the Gaussian likelihood of its
+  source (``light_spread_px2``: a star brighter than a small Didymos), and, when the candidate chosen holds
+  Dimorphos's predicted place with more than both bodies' expected areas, another extended candidate off the place
+  within the orbit's reach, of Didymos's size and with at least half its light (``_beside_ejecta``: ejecta leave
+  Dimorphos, so a fan of them brighter than a crescent at high phase holds the place). When it need not be, shape
+  cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
+  likelihood of its
   distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates first when
   Didymos may be resolved (a star never is); without a prediction, the largest. With a
   pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
@@ -413,7 +417,28 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
         # a star brighter than a small Didymos: the brightest extended candidate, if any
         best = max([i for i, b in enumerate(blobs) if not _point_source(regions, b, cfg)] or range(len(blobs)),
                    key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
+    if resolved and place is not None:
+        best = _beside_ejecta(blobs, lights, best, exp, place, regions, cfg)
     return blobs[best]
+
+
+def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expected, place: _Place,
+                   regions: Regions, cfg: ImagingConfig) -> int:
+    """The index of Didymos when the ``best`` candidate holds Dimorphos's place with more than both bodies' expected
+    areas (Dimorphos with the ejecta it sheds, Didymos beside it or not): another extended candidate off the place,
+    within the orbit's reach, of Didymos's size (within its largest region, at least its expected area at the
+    farthest range) and with at least half the light; else ``best``. Ejecta leave Dimorphos, so a
+    fan of them brighter than a crescent holds the place; a second body-sized region there is Didymos."""
+    b = blobs[best]
+    both = exp.didymos_area + exp.dimorphos_area
+    if b.area_px <= both or _box_distance(b, place.col_row) > place.radius_px:
+        return best
+    reach = place.radius_px + exp.orbit_radius_max + exp.didymos_radius_max
+    smallest = exp.didymos_area / exp.radius_factor_max ** 2
+    beside = [i for i, c in enumerate(blobs)
+              if i != best and smallest <= c.area_px <= exp.didymos_area_max and lights[i] >= 0.5 * lights[best]
+              and place.radius_px < _box_distance(c, place.col_row) <= reach and not _point_source(regions, c, cfg)]
+    return max(beside, key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label)) if beside else best
 
 
 def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) -> float:
