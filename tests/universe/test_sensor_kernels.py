@@ -8,6 +8,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.numerics import assert_within_ulps
 from universe.sensor_kernels import gyro_and_tachometers, star_tracker_q
 
 _values = st.floats(-10.0, 10.0, allow_nan=False)
@@ -57,11 +58,12 @@ def _from_rotvec(r: np.ndarray) -> np.ndarray:
        sigma=st.lists(st.floats(0.0, 1e-4), min_size=3, max_size=3).map(np.array), z=_vector(3))
 def test_the_star_tracker_quaternion_is_the_numpy_expression(q: np.ndarray, bias: np.ndarray, sigma: np.ndarray,
                                                              z: np.ndarray) -> None:
-    """True attitude times the rotation of bias + sigma z, normalised, bit for bit as the NumPy code computed it
-    (zero and tiny errors included)."""
+    """True attitude times the rotation of bias + sigma z, normalised, as the NumPy code computed it (zero and tiny
+    errors included), within 4 ulps of 1 (bit for bit where NumPy sums its small products in index order,
+    ``tests.numerics``)."""
     q_true = q / np.linalg.norm(q) if np.linalg.norm(q) > 1e-3 else np.array([0.0, 0.0, 0.0, 1.0])
     product = _multiply(q_true, _from_rotvec(bias + sigma * z))
     expected = product / math.sqrt(float(product.dot(product)))
     out = np.empty(4)
     star_tracker_q(q_true, bias, sigma, z, out)
-    assert out.tobytes() == expected.tobytes()
+    assert_within_ulps(out, expected)
