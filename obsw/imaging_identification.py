@@ -18,10 +18,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   within the orbit's reach, of Didymos's size and with at least half its light (``_beside_ejecta``: ejecta leave
   Dimorphos, so a fan of them brighter than a crescent at high phase holds the place). When it need not be, shape
   cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
-  likelihood of its
-  distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates first when
-  Didymos may be resolved (a star never is); without a prediction, the largest. With a
-  pair seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
+  likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
+  first when Didymos may be resolved (a star never is); without a prediction, the largest. With a pair seen in
+  earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
   of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
   be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A). When
@@ -427,8 +426,8 @@ def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expec
     """The index of Didymos when the ``best`` candidate holds Dimorphos's place with more than both bodies' expected
     areas (Dimorphos with the ejecta it sheds, Didymos beside it or not): another extended candidate off the place,
     within the orbit's reach, of Didymos's size (within its largest region, at least its expected area at the
-    farthest range) and with at least half the light; else ``best``. Ejecta leave Dimorphos, so a
-    fan of them brighter than a crescent holds the place; a second body-sized region there is Didymos."""
+    farthest range) and with at least half the light; else ``best``. Ejecta leave Dimorphos, so a fan of them
+    brighter than a crescent holds the place; a second body-sized region within the orbit's reach is Didymos."""
     b = blobs[best]
     both = exp.didymos_area + exp.dimorphos_area
     if b.area_px <= both or _box_distance(b, place.col_row) > place.radius_px:

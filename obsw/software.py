@@ -372,7 +372,7 @@ class FlightSoftware:
                 self._centroid_to_torque_s = run.finish_s - latest.time_s
         if not run.ran:
             return
-        overrun = run.finish_s > run.deadline_s  # run.overrun, as it ran
+        overrun = run.overrun
         if overrun and not self._overrunning[run.task]:
             late = run.finish_s - run.deadline_s
             self._event(pus.TaskOverrunEvent(task=run.task, minor_frame=run.minor_frame, execution_s=run.execution_s,
