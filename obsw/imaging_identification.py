@@ -649,10 +649,12 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
 
 
 def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob], exp: Expected,
-           prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig, next_label: int
+           prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig, next_label: int, placed: bool = False
            ) -> tuple[list[Blob], list[Blob], Blob, int]:
     """Replace Didymos's blob by the parts of its brightest pixels of both bodies' expected area and choose Didymos
-    again: (candidates, Didymos candidates, Didymos, next free label)."""
+    again: (candidates, Didymos candidates, Didymos, next free label); among its parts only when the region was
+    ``placed`` (chosen among point-like candidates by its distance from Dimorphos's place: a star elsewhere, brighter
+    than its parts, was less likely)."""
     parts = [p for p in regions.parts(didymos, round(exp.didymos_area + exp.dimorphos_area), next_label)
              if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
     if not parts or parts == [didymos]:
@@ -661,8 +663,8 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     likely = [c for c in likely if c is not didymos] + parts
     # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one;
     # the place chose the region among stars, not between its parts (Didymos, Dimorphos and ejecta, all there)
-    return cands, likely, _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, None), \
-        regions.free_label(next_label)
+    return cands, likely, _choose_didymos(parts if placed else likely, cands, exp, prev_did, prev_dim, cfg, regions,
+                                          None), regions.free_label(next_label)
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
@@ -776,6 +778,9 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         if not likely:
             return None, None
     didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
+    # chosen by its distance from the place among point-like candidates (``_best_didymos``)
+    placed = place is not None and exp is not None and regions is not None and len(likely) > 1 \
+        and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
     if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
             and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max) \
@@ -786,14 +791,14 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
         # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
         cands, likely, didymos, next_label = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg,
-                                                   next_label)
+                                                   next_label, placed)
     elif exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area:
         # room for both bodies: Dimorphos may be merged with Didymos, bridged by ejecta or the blur; a part of
         # Didymos's brightest pixels no larger than Dimorphos can be, and not a piece of a crescent, is Dimorphos;
         # so is a larger one (holding ejecta, trimmed below) where the trajectory puts Dimorphos, when it puts it
         # closer than the orbit's radius (the place then tells Dimorphos from Didymos), or where the last pair's
         # offset puts it from the part taken for Didymos
-        split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label)
+        split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label, placed)
         found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions)
         if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
                 and (found.area_px <= exp.dimorphos_area_max
