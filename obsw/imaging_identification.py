@@ -408,7 +408,7 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     n = round(exp.didymos_area)
     lights = apertures_dn8(regions, blobs, n)
     resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
-    if not resolved and place is not None and len(blobs) > 1:
+    if place is not None and _placed(blobs, exp, regions, cfg, place):
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
         return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
@@ -419,6 +419,14 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     if resolved and place is not None:
         best = _beside_ejecta(blobs, lights, best, exp, place, regions, cfg)
     return blobs[best]
+
+
+def _placed(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
+            place: _Place | None) -> bool:
+    """Whether ``_best_didymos`` chooses among ``blobs`` by their distance from Dimorphos's place (``_likeliest``):
+    Didymos need not be resolved, the place is known, and there is a choice."""
+    return place is not None and exp is not None and regions is not None and len(blobs) > 1 \
+        and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
 
 
 def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expected, place: _Place,
@@ -649,7 +657,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
 
 
 def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob], exp: Expected,
-           prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig, next_label: int, placed: bool = False
+           prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig, next_label: int, placed: bool
            ) -> tuple[list[Blob], list[Blob], Blob, int]:
     """Replace Didymos's blob by the parts of its brightest pixels of both bodies' expected area and choose Didymos
     again: (candidates, Didymos candidates, Didymos, next free label); among its parts only when the region was
@@ -778,9 +786,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
         if not likely:
             return None, None
     didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
-    # chosen by its distance from the place among point-like candidates (``_best_didymos``)
-    placed = place is not None and exp is not None and regions is not None and len(likely) > 1 \
-        and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
+    placed = _placed(likely, exp, regions, cfg, place)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
     if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
             and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max) \

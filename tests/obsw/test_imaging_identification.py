@@ -510,7 +510,7 @@ def test_a_split_hands_on_a_label_past_every_part_it_cut() -> None:
     (blob,) = regions.blobs()
     exp = Expected(didymos_area=60.0, dimorphos_area=13.0, didymos_area_max=80.0, dimorphos_area_max=20.0,
                    didymos_radius_max=6.0, dimorphos_radius_max=3.0, orbit_radius_max=30.0)
-    _, _, _, next_label = _split(regions, blob, [blob], [blob], exp, None, None, CFG, 2)
+    _, _, _, next_label = _split(regions, blob, [blob], [blob], exp, None, None, CFG, 2, False)
     assert sorted(regions.part_pixels) == [2, 3, 4]
     assert next_label > max(regions.part_pixels)
 
