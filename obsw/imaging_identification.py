@@ -867,13 +867,16 @@ def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:
 def _dimorphos_surface(regions: Regions | None, dimorphos: Blob, exp: Expected, next_label: int,
                        place: _Place | None, cfg: ImagingConfig) -> Blob:
     """The blob taken for Dimorphos, trimmed to its surface (``trimmed``) when it is larger than Dimorphos can be,
-    cut out of a blob that held ejecta, or a resolved disc (the point-spread function's reach, psf_reach_px, under
-    half its radius) larger than expected, perhaps with dust brighter than the threshold around it."""
+    cut out of a blob that held ejecta, a resolved disc (the point-spread function's reach, psf_reach_px, under
+    half its radius) larger than expected, perhaps with dust brighter than the threshold around it, or larger than
+    the disc of its predicted radius widened by that reach (a small body's light stays within it; ejecta do not)."""
+    reach = psf_reach_px(cfg)
     if regions is not None and (
             dimorphos.area_px > exp.dimorphos_area_max
             or dimorphos.area_px > exp.dimorphos_area and (
                 dimorphos.trimmed_from
-                or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * psf_reach_px(cfg))):
+                or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * reach
+                or dimorphos.area_px > math.pi * (exp.dimorphos_radius + reach + 1.0) ** 2)):
         return trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
     return dimorphos
 
