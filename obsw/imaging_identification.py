@@ -793,7 +793,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
             and _surface_area(regions, didymos, exp) < math.sqrt(exp.didymos_area * exp.dimorphos_area):
         # no blob with a lit surface of Didymos's size: a Dimorphos-sized surface (with the ejecta it holds) where
         # Dimorphos is expected, Didymos out of the image
-        return None, _dimorphos_surface(regions, didymos, exp, next_label, place, cfg)
+        return None, _brightest_surface_at(regions, didymos, cands, exp, next_label, place, cfg)
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
         # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
         cands, likely, didymos, next_label = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg,
@@ -862,6 +862,29 @@ def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:
     if regions is None:
         return blob.area_px
     return min(blob.area_px, surface_pixels(regions, blob, round(exp.dimorphos_area)))
+
+
+def _brightest_surface_at(regions: Regions | None, chosen: Blob, cands: list[Blob], exp: Expected, next_label: int,
+                          place: _Place, cfg: ImagingConfig) -> Blob:
+    """Dimorphos when Didymos is out of the image: the surface (``_dimorphos_surface``) of the ``chosen`` blob, or of
+    another candidate at Dimorphos's place (centroid within its radius) of at least a quarter of Dimorphos's expected
+    area and at most its largest, not at the image's edge, whichever is brightest by mean (ties: the chosen). A lit
+    surface is brighter than the dust around it (``trimmed``'s rule), and a plume seen past a crescent's dark limb is
+    a region of its own: the chosen blob, holding the most light, may be the plume. A region at the edge may be the
+    limb of Didymos beyond it, as bright as any surface, and within a place known to tens of px."""
+    best = _dimorphos_surface(regions, chosen, exp, next_label, place, cfg)
+    if regions is None:
+        return best
+    n = exp.dimorphos_area
+    for c in cands:
+        if c is chosen or c.touches_edge or 4 * c.area_px < n or c.area_px > exp.dimorphos_area_max \
+                or _distance(c.region_centroid_col_row, place.col_row) > place.radius_px:
+            continue
+        next_label = regions.free_label(next_label)
+        surface = _dimorphos_surface(regions, c, exp, next_label, place, cfg)
+        if surface.mean_dn8 > best.mean_dn8:
+            best = surface
+    return best
 
 
 def _dimorphos_surface(regions: Regions | None, dimorphos: Blob, exp: Expected, next_label: int,

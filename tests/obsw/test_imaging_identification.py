@@ -668,3 +668,38 @@ def test_bench_frame_with_an_unresolved_didymos_in_its_plume() -> None:
     t = _bench_trial(14, 287)
     assert t.didymos.truth_index == 0
     assert t.didymos.error_px is not None and t.didymos.error_px <= PAPER_LIMIT_PX
+
+
+def _crescent_before_a_plume(seed: int) -> Scene:
+    """Dimorphos (about 80 px across, full resolution) at 100-105 deg of phase, the Sun towards +columns, its plume
+    behind it pointing away from the Sun, as bright near its dark limb as a third of the crescent and filling Didymos's
+    expected area; Didymos 500 px beyond it towards the Sun, its lit side off the image: the plume, seen past
+    Dimorphos's dark limb, is a region of its own beside the crescent."""
+    rng = np.random.default_rng([71, seed])
+    col, row = 470.0 + rng.uniform(-20, 20), 512.0 + rng.uniform(-40, 40)
+    q = (0.0, 0.0, 0.0, 1.0)
+    return Scene(
+        bodies=(Ellipsoid(col + 500.0, row + rng.uniform(-30, 30), 42.0e3, (200.0, 190.0, 180.0), q, 1600.0),
+                Ellipsoid(col, row, 42.5e3, (42.0, 39.0, 37.0), q, 1500.0, law="minnaert", law_parameter=0.65)),
+        range_m=42.5e3, phase_deg=float(rng.uniform(100.0, 105.0)), sun_azimuth_deg=float(rng.uniform(-20.0, 20.0)),
+        plume=Plume(axis_deg=180.0 + float(rng.uniform(-20.0, 20.0)), half_angle_deg=48.0, length_px=1300.0,
+                    brightness_dn=700.0, exponent=1.3))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_with_didymos_out_a_crescent_beside_its_plume_is_dimorphos(seed: int) -> None:
+    """With Didymos's lit side off the image, the blob holding the most light in Didymos's expected area is the plume
+    behind Dimorphos, a region of its own past the crescent's dark limb; Dimorphos is the brightest surface at its
+    place, the crescent, not the plume's brightest part beside it (bench seed 21 frame 5: the plume, 32.6 px off)."""
+    scene = _crescent_before_a_plume(seed)
+    rng = np.random.default_rng([72, seed])
+    t = run_trial(scene, seed, prediction_for(scene, rng, 3.0))
+    _assert_found(t, 1)
+
+
+def test_bench_frame_with_a_crescent_beside_its_plume_and_didymos_out() -> None:
+    """Bench seed 21 frame 5 (a seed no change was tuned on): Dimorphos's crescent at 102 deg of phase beside its
+    plume, Didymos's lit side at the image's edge; Dimorphos reported within 3 px of its centre."""
+    t = _bench_trial(21, 5)
+    _assert_found(t, 1)
+    assert t.dimorphos.error_px <= 3.0
