@@ -26,12 +26,16 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A). When
   Didymos may be off the image (the orbit's reach from Dimorphos's place crosses the edge) and the candidate chosen
   is where the trajectory puts Dimorphos with a lit surface (``surface_pixels``: the dust around it is fainter) under
-  the geometric mean of the two bodies' expected areas, it is Dimorphos, cut to its surface, and Didymos is not seen.
+  the geometric mean of the two bodies' expected areas, it is Dimorphos, cut to its surface, and Didymos is not seen;
+  another candidate there, whole in the image, with a brighter surface is Dimorphos instead
+  (``_brightest_surface_at``: a plume seen past a crescent's dark limb is a region of its own).
 - **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
   trimmed to its brightest pixels of the expected area of both bodies, the 8-connected parts of which take its
   place; a blob with room for both is split the same way when a part of it is Dimorphos (no larger than Dimorphos
   can be, or larger, holding ejecta, at the trajectory's place when that place is closer than the orbit's radius).
-  The blob taken for Dimorphos, when larger than Dimorphos can be, is trimmed to its brightest pixels of
+  The blob taken for Dimorphos, when larger than Dimorphos can be or than the disc of its predicted radius widened
+  by the point-spread function's reach (``psf_reach_px``: a small body's light stays within it, ejecta do not), is
+  trimmed to its brightest pixels of
   Dimorphos's expected area, and of their parts the brightest by mean among those of at least a quarter of that
   area (``trimmed``): the ejecta leave Dimorphos and fade away from it, and a star in the dust holds a few pixels.
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
