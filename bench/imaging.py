@@ -20,6 +20,9 @@ and the bad-pixel map ground would upload (dead pixels and columns, half the hot
 - misses and wrong reports (a body reported where another body, a star, a defect or the plume is; counted for
   bodies of 3 px and more), each with its classes (``imaging_trials.failure_classes``: small, faint, phase, edge,
   close pair, plume, unrecognised trajectory; and what was reported instead);
+- every report of a body of any size not cut by the frame's edge: the share on the body it was taken for and within
+  the paper's 15 px of its centre, and the point-like Didymos identified but not reported, as likely a star as Didymos
+  (``ImagingConfig.didymos_min_report_probability``);
 - one defect more (a saturated hot pixel or a 6 px cosmic ray on Didymos, on Dimorphos, or anywhere; same noise):
   reports whose body changed to another blob, and bodies found or lost, each listed, those of bodies the chain must
   find (as for detection) counted apart;
@@ -66,6 +69,7 @@ from obsw.imaging_kernels import warm_up  # noqa: E402
 from obsw.trajectory import NominalTrajectory  # noqa: E402
 from tests.obsw.frame_generator import random_scene, render  # noqa: E402
 from tests.obsw.imaging_trials import (  # noqa: E402
+    CFG,
     PAPER_LIMIT_PX,
     failure_classes,
     ground_map,
@@ -96,6 +100,9 @@ class Tally:
     misses: list[str] = field(default_factory=list)
     wrong: list[str] = field(default_factory=list)
     wrong_small: int = 0
+    reports: int = 0  # bodies reported (either body, any size), not cut by the frame's edge
+    reports_right: int = 0  # of them, on the body they were taken for and within the paper's 15 px of its centre
+    withheld: int = 0  # point-like Didymos identified but not reported: as likely a star (didymos_probability)
     opencv: list[float] = field(default_factory=list)
     errors: list[list[tuple[float, float]]] = field(default_factory=lambda: [[], []])
     far: list[str] = field(default_factory=list)
@@ -114,7 +121,8 @@ class Tally:
             self.errors[i] += other.errors[i]
         for name in ("misses", "wrong", "opencv", "far", "changed", "lost_found"):
             getattr(self, name).extend(getattr(other, name))
-        for name in ("wrong_small", "changed_must", "lost_found_must", "trials"):
+        for name in ("wrong_small", "reports", "reports_right", "withheld", "changed_must", "lost_found_must",
+                     "trials"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
@@ -146,6 +154,12 @@ def frame_tally(seed: int, k: int, defects: bool) -> Tally:
         if body.opencv_px is not None:
             out.opencv.append(body.opencv_px)
         blob = t.detections.didymos if i == 0 else t.detections.dimorphos
+        if blob is not None and not blob.touches_edge:  # a body cut by the edge: its centre may be off the image
+            out.reports += 1
+            out.reports_right += body.truth_index == i and body.error_px is not None \
+                and body.error_px <= PAPER_LIMIT_PX
+        elif i == 0:
+            out.withheld += t.detections.didymos_probability < CFG.didymos_min_report_probability
         if body.truth_index == i and blob is not None and not blob.touches_edge:
             out.errors[i].append((body.uncorrected_error_px, body.error_px))  # type: ignore[arg-type]
             if body.error_px > PAPER_LIMIT_PX:  # type: ignore[operator]
@@ -210,6 +224,9 @@ def _print_tally(t: Tally, n: int, seed: int, defects: bool) -> None:
           f"plume); of smaller bodies: {t.wrong_small}")
     for line in t.wrong:
         print(f"    {line}")
+    print(f"  reports not at the edge on the body taken for, within 15 px of its centre: {t.reports_right} of "
+          f"{t.reports} ({100.0 * t.reports_right / max(t.reports, 1):.2f} %); point-like Didymos not reported, as likely a "
+          f"star (probability under {CFG.didymos_min_report_probability}): {t.withheld}")
     if defects:
         print(f"  one defect more, {t.trials} trials x 2 bodies: {len(t.changed)} reports changed to another blob "
               f"({t.changed_must} of bodies the chain must find, {len(t.changed) - t.changed_must} of smaller or "

@@ -45,7 +45,7 @@ from obsw.imaging_filtering import (
     working_buffers,
 )
 from obsw.imaging_geometry import FramePrediction, focal_length_px, los_body, offset_rad, predict_frame
-from obsw.imaging_identification import Blob, Regions, identify_bodies, phase_corrected
+from obsw.imaging_identification import Blob, Regions, identify, identify_bodies, phase_corrected
 from obsw.imaging_kernels import values_at
 from obsw.imaging_labelling import Components, connected_components
 from obsw.imaging_limb import limb_corrected
@@ -80,6 +80,8 @@ class Detections:
     outliers: int = 0  # pixels the outlier filter replaced
     regions: int = 0  # 8-connected regions of the binarised image, the small ones included
     limb_samples: int = 0  # gradient samples the limb fit of Dimorphos took (obsw.imaging_limb; 0: not fitted)
+    # the probability that the Didymos identified is Didymos (below cfg.didymos_min_report_probability: not reported)
+    didymos_probability: float = 1.0
 
 
 def _offsets(blob: Blob | None, fov_deg: float, n: int) -> tuple[tuple[float, float] | None, tuple[float, float] | None]:
@@ -145,7 +147,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     regions = Regions(components, values8, n, thr.threshold_dn8, linear8=linear_values(cfg, camera.bit_depth))
     # a region smaller than a body (noise, a defect the filter left) is counted, not described
     blobs = regions.blobs(min_area_px=cfg.min_body_area_px)
-    didymos, dimorphos = identify_bodies(blobs, cfg, previous, prediction, regions)
+    didymos, dimorphos, probability = identify(blobs, cfg, previous, prediction, regions)
     pair: tuple[Blob, Blob] | None = None
     age = 0
     if didymos is not None and dimorphos is not None:
@@ -160,6 +162,8 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
                                              image.binned, prediction, cfg, camera.fov_deg)
     if pair is not None and age == 0:
         pair = (didymos, dimorphos)  # type: ignore[assignment]
+    if probability < cfg.didymos_min_report_probability:
+        didymos = None  # a point source as likely a star: not reported; the pair keeps it for continuity
     did_px, did_rad = _offsets(didymos, camera.fov_deg, n)
     dim_px, dim_rad = _offsets(dimorphos, camera.fov_deg, n)
     extra = tuple(b for b in (didymos, dimorphos) if b is not None and b.trimmed_from)
@@ -181,4 +185,5 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
         outliers=int(image.outliers.size),
         regions=int(components.area_px.size),
         limb_samples=limb_samples,
+        didymos_probability=probability,
     )

@@ -19,7 +19,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   Dimorphos, so a fan of them brighter than a crescent at high phase holds the place). When it need not be, shape
   cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
   likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
-  first when Didymos may be resolved (a star never is); without a prediction, the largest. With a pair seen in
+  first when Didymos may be resolved (a star never is); without a prediction, the largest. When Didymos cannot be
+  resolved at all, that choice comes with its probability, its likelihood over the sum of all the candidates' it was
+  chosen among (``Identification.didymos_probability``): the imaging chain does not report a Didymos under
+  ``didymos_min_report_probability``, as likely a star. With a pair seen in
   earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
   of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
@@ -402,19 +405,21 @@ def _largest(blobs: list[Blob]) -> Blob:
 
 
 def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
-                  place: _Place | None) -> Blob:
+                  place: _Place | None) -> tuple[Blob, float]:
     """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
     fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
     however bright (a star: ``_point_source``); when it need not be, with Dimorphos's place known, the most likely
-    (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest."""
+    (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest. With
+    the probability that it is Didymos when it cannot be resolved (``_likeliest``), else 1."""
     if exp is None or regions is None:
-        return _largest(blobs)
+        return _largest(blobs), 1.0
     n = round(exp.didymos_area)
     lights = apertures_dn8(regions, blobs, n)
     resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
     if place is not None and _placed(blobs, exp, regions, cfg, place):
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
-        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
+        chosen, probability = _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
+        return chosen, 1.0 if may else probability
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     if resolved and _point_source(regions, blobs[best], cfg):
         # a star brighter than a small Didymos: the brightest extended candidate, if any
@@ -422,7 +427,7 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
                    key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     if resolved and place is not None:
         best = _beside_ejecta(blobs, lights, best, exp, place, regions, cfg)
-    return blobs[best]
+    return blobs[best], 1.0
 
 
 def _placed(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
@@ -467,13 +472,18 @@ def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) 
 
 
 def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: float, may_be_resolved: bool,
-               regions: Regions, cfg: ImagingConfig) -> Blob:
+               regions: Regions, cfg: ImagingConfig) -> tuple[Blob, float]:
     """The blob of highest ``_point_likelihood`` (ties: more light, larger, first), extended blobs first when the
-    body may be resolved: a star is a point source."""
+    body may be resolved: a star is a point source. With the probability that it is the body, exactly one of the
+    blobs of its kind (extended or not) being the body: its likelihood over theirs."""
     first = [may_be_resolved and not _point_source(regions, b, cfg) for b in blobs]
     scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
-    return blobs[max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px,
-                                                      -blobs[i].label))]
+    best = max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))
+    top = scores[best]
+    if top == -math.inf:  # none at the place known exactly: the light alone chose it
+        return blobs[best], 0.0
+    total = math.fsum(math.exp(s - top) for s, f in zip(scores, first, strict=True) if f == first[best])
+    return blobs[best], 1.0 / total
 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
@@ -487,6 +497,8 @@ def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | 
     if did is not None and dim is not None:
         return did, dim
     pair, age = previous.pair, previous.pair_age_frames  # type: ignore[attr-defined]
+    if dim is not None and pair is not None and age == 0:
+        return pair  # Didymos identified with Dimorphos, not reported (``Identification.didymos_probability``)
     if dim is None and pair is not None and age < cfg.pair_memory_frames \
             and pair[0].diameter_px <= cfg.pair_memory_max_didymos_px:
         return pair
@@ -515,9 +527,11 @@ def _with_companion(likely: list[Blob], cands: list[Blob], predicted: tuple[floa
 
 
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
-                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None, place: _Place | None) -> Blob:
-    """Didymos among the ``likely`` candidates (see the module docstring); ``cands`` are all candidates."""
-    didymos = _best_didymos(likely, exp, regions, cfg, place)
+                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None, place: _Place | None
+                    ) -> tuple[Blob, float]:
+    """Didymos among the ``likely`` candidates (see the module docstring), with the probability that it is
+    (``_best_didymos``); ``cands`` are all candidates."""
+    didymos, probability = _best_didymos(likely, exp, regions, cfg, place)
     if prev_did is not None and prev_dim is not None:
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         paired = _with_companion(likely, cands, _relative(prev_dim, prev_did), cfg, exp)
@@ -531,8 +545,8 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
             paired = [c for c, light in zip(paired, apertures_dn8(regions, paired, n), strict=True)
                       if light >= least or c.mean_dn8 - regions.threshold_dn8 >= surface]
         if paired:
-            didymos = _best_didymos(paired, exp, regions, cfg, place)
-    return didymos
+            didymos, probability = _best_didymos(paired, exp, regions, cfg, place)
+    return didymos, probability
 
 
 @dataclass(frozen=True, slots=True)
@@ -656,7 +670,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     if place is not None and len(in_gate) > 1:
         # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself
         may = _must_be_resolved(exp.dimorphos_radius * exp.radius_factor_max, regions, cfg)
-        return _likeliest(in_gate, lights, place, 0.0, may, regions, cfg)
+        return _likeliest(in_gate, lights, place, 0.0, may, regions, cfg)[0]
     return in_gate[max(range(len(in_gate)), key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
 
 
@@ -676,7 +690,7 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one;
     # the place chose the region among stars, not between its parts (Didymos, Dimorphos and ejecta, all there)
     return cands, likely, _choose_didymos(parts if placed else likely, cands, exp, prev_did, prev_dim, cfg, regions,
-                                          None), regions.free_label(next_label)
+                                          None)[0], regions.free_label(next_label)
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
@@ -760,10 +774,27 @@ def _sized_by_didymos(exp: Expected, didymos: Blob, cfg: ImagingConfig) -> Expec
                    dimorphos_area_max=min(exp.dimorphos_area_max, area_max))
 
 
+class Identification(NamedTuple):
+    """Which blobs are the bodies (None: not seen), and the probability that the Didymos taken is Didymos: below 1
+    when it cannot be resolved and was chosen among point sources by its light and place (``_likeliest``)."""
+
+    didymos: Blob | None
+    dimorphos: Blob | None
+    didymos_probability: float = 1.0
+
+
 def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
                     prediction: FramePrediction | None = None, regions: Regions | None = None
                     ) -> tuple[Blob | None, Blob | None]:
-    """Return (didymos, dimorphos) among the blobs, either None when not seen (see the module docstring).
+    """Return (didymos, dimorphos) among the blobs, either None when not seen (``identify`` without the
+    probability)."""
+    found = identify(blobs, cfg, previous, prediction, regions)
+    return found.didymos, found.dimorphos
+
+
+def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
+             prediction: FramePrediction | None = None, regions: Regions | None = None) -> Identification:
+    """Identify Didymos and Dimorphos among the blobs (see the module docstring).
 
     ``previous`` is the previous frame's ``Detections`` (continuity); ``regions`` the frame's labelled foreground,
     needed to trim blobs that hold ejecta (without it, blobs are taken whole). Centroids are not phase-corrected
@@ -771,7 +802,7 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
     """
     cands = [b for b in blobs if b.area_px >= cfg.min_body_area_px and b.elongation <= cfg.max_body_elongation]
     if not cands:
-        return None, None
+        return Identification(None, None)
     exp = expected(prediction, cfg)
     place = _place(prediction, exp, cfg)
     prev_did, prev_dim = reference_pair(previous, cfg)
@@ -781,15 +812,16 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
     if prev_did is not None and prev_dim is not None and previous.dimorphos is prev_dim \
             and (exp is None or biggest.area_px <= exp.dimorphos_area_max) \
             and _continues_dimorphos_alone(biggest, prev_did, prev_dim, cfg):  # type: ignore[attr-defined]
-        return None, biggest
+        return Identification(None, biggest)
     likely = cands
     if place is not None and exp is not None:
         # Didymos is within the orbit's radius of Dimorphos, wherever the trajectory puts it
         reach = place.radius_px + exp.orbit_radius_max + exp.didymos_radius_max
         likely = [c for c in cands if _box_distance(c, place.col_row) <= reach]
         if not likely:
-            return None, None
-    didymos = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
+            return Identification(None, None)
+    chosen = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
+    didymos, probability = chosen
     placed = _placed(likely, exp, regions, cfg, place)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
     if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
@@ -797,7 +829,8 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
             and _surface_area(regions, didymos, exp) < math.sqrt(exp.didymos_area * exp.dimorphos_area):
         # no blob with a lit surface of Didymos's size: a Dimorphos-sized surface (with the ejecta it holds) where
         # Dimorphos is expected, Didymos out of the image
-        return None, _brightest_surface_at(regions, didymos, cands, exp, next_label, place, cfg)
+        return Identification(None, _brightest_surface_at(regions, didymos, cands, exp, next_label, place,
+                                                          cfg))
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
         # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
         cands, likely, didymos, next_label = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg,
@@ -856,7 +889,10 @@ def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, pr
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions)
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
-    return didymos, dimorphos
+    # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
+    # after a cut was taken by its light among them all)
+    same = (didymos.trimmed_from or didymos.label) == (chosen[0].trimmed_from or chosen[0].label)
+    return Identification(didymos, dimorphos, probability if same else 1.0)
 
 
 def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:

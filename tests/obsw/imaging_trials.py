@@ -193,11 +193,11 @@ def _body(det: Detections, blob: Blob | None, index: int, frame: Frame, ref: Ref
                       trimmed=bool(blob.trimmed_from))
 
 
-def run_trial(scene: Scene, seed: int, prediction: FramePrediction) -> Trial:
-    """Render the scene with noise from ``seed`` and run both pipelines on it."""
+def run_trial(scene: Scene, seed: int, prediction: FramePrediction, cfg: ImagingConfig = CFG) -> Trial:
+    """Render the scene with noise from ``seed`` and run both pipelines on it (the chain with ``cfg``)."""
     frame = render(scene, np.random.default_rng(seed))
     bad = ground_map(scene)
-    det = process_frame(frame.pixels, CFG, bad_pixels=bad, prediction=prediction)
+    det = process_frame(frame.pixels, cfg, bad_pixels=bad, prediction=prediction)
     d = scene.defects
     ref = reference_pipeline(frame.pixels, bad_pixels=([(c, r) for c, r, _ in d.hot[: len(d.hot) // 2]]
                                                        + list(d.dead), d.dead_columns))
