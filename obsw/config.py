@@ -444,13 +444,12 @@ class ImagingConfig(Config):
         0.9,
         ge=0,
         le=1,
-        description="smallest probability that the candidate taken for a point-like Didymos (one that cannot be "
-        "resolved: even its largest predicted radius under twice point_source_sigma_max_px) is Didymos rather than "
-        "a star, for it to be reported: the normalised light-and-place likelihood of obsw/imaging_identification.py "
-        "(_point_likelihood) over the point sources it was chosen among. Shape cannot tell such a Didymos from a "
-        "star; below it Didymos is reported unseen (a wrong line of sight is worse than none) and still serves the "
-        "pair's continuity. 0.9: a conventional confidence; over the 3,720 independent frames of bench/imaging.py's "
-        "seeds 1-6 and 11-16 it withheld 105 wrong reports of Didymos and 81 right ones",
+        description="smallest probability that a point source taken for Didymos (its light spread no more than "
+        "point_source_sigma_max_px allows) is Didymos rather than a star, for it to be reported: the normalised "
+        "light-and-place likelihood of obsw/imaging_identification.py (_point_likelihood) over the point sources it "
+        "was chosen among. Shape cannot tell such a Didymos from a star; below it Didymos is reported unseen (a wrong "
+        "line of sight is worse than none) and still serves the pair's continuity. 0.9: a conventional confidence "
+        "(bench/imaging.py prints the reports it withholds; README, imaging chain)",
     )
     phase_correction: bool = Field(
         True,

@@ -19,9 +19,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   Dimorphos, so a fan of them brighter than a crescent at high phase holds the place). When it need not be, shape
   cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
   likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
-  first when Didymos may be resolved (a star never is); without a prediction, the largest. When Didymos cannot be
-  resolved at all, that choice comes with its probability, its likelihood over the sum of all the candidates' it was
-  chosen among (``Identification.didymos_probability``): the imaging chain does not report a Didymos under
+  first when Didymos may be resolved (a star never is); without a prediction, the largest. When the blob so chosen
+  is a point source, that choice comes with its probability, its likelihood over the sum of all the point sources'
+  it was chosen among (``Identification.didymos_probability``): the imaging chain does not report a Didymos under
   ``didymos_min_report_probability``, as likely a star. With a pair seen in
   earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
@@ -410,7 +410,7 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
     however bright (a star: ``_point_source``); when it need not be, with Dimorphos's place known, the most likely
     (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest. With
-    the probability that it is Didymos when it cannot be resolved (``_likeliest``), else 1."""
+    the probability that it is Didymos when it was chosen among point sources that way (``_likeliest``), else 1."""
     if exp is None or regions is None:
         return _largest(blobs), 1.0
     n = round(exp.didymos_area)
@@ -419,7 +419,8 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     if place is not None and _placed(blobs, exp, regions, cfg, place):
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
         chosen, probability = _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
-        return chosen, 1.0 if may else probability
+        # an extended blob taken first when Didymos may be resolved: its shape told it from the stars
+        return chosen, 1.0 if may and not _point_source(regions, chosen, cfg) else probability
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     if resolved and _point_source(regions, blobs[best], cfg):
         # a star brighter than a small Didymos: the brightest extended candidate, if any
@@ -776,7 +777,7 @@ def _sized_by_didymos(exp: Expected, didymos: Blob, cfg: ImagingConfig) -> Expec
 
 class Identification(NamedTuple):
     """Which blobs are the bodies (None: not seen), and the probability that the Didymos taken is Didymos: below 1
-    when it cannot be resolved and was chosen among point sources by its light and place (``_likeliest``)."""
+    when it is a point source chosen among point sources by its light and place (``_likeliest``)."""
 
     didymos: Blob | None
     dimorphos: Blob | None
