@@ -481,7 +481,7 @@ def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: 
     scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
     best = max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))
     top = scores[best]
-    if top == -math.inf:  # none at the place known exactly: the light alone chose it
+    if top == -math.inf:  # a place known exactly and none of them there: none can be the body
         return blobs[best], 0.0
     total = math.fsum(math.exp(s - top) for s, f in zip(scores, first, strict=True) if f == first[best])
     return blobs[best], 1.0 / total
