@@ -418,9 +418,7 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
     if place is not None and _placed(blobs, exp, regions, cfg, place):
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
-        chosen, probability = _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
-        # an extended blob taken first when Didymos may be resolved: its shape told it from the stars
-        return chosen, 1.0 if may and not _point_source(regions, chosen, cfg) else probability
+        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     if resolved and _point_source(regions, blobs[best], cfg):
         # a star brighter than a small Didymos: the brightest extended candidate, if any
@@ -475,15 +473,18 @@ def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) 
 def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: float, may_be_resolved: bool,
                regions: Regions, cfg: ImagingConfig) -> tuple[Blob, float]:
     """The blob of highest ``_point_likelihood`` (ties: more light, larger, first), extended blobs first when the
-    body may be resolved: a star is a point source. With the probability that it is the body, exactly one of the
-    blobs of its kind (extended or not) being the body: its likelihood over theirs."""
+    body may be resolved: a star is a point source. With the probability that it is the body: for a point source,
+    its likelihood over the sum of the point sources' (exactly one of them being the body); 1 for an extended blob
+    taken first (its shape told it from the stars)."""
     first = [may_be_resolved and not _point_source(regions, b, cfg) for b in blobs]
     scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
     best = max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))
+    if first[best]:
+        return blobs[best], 1.0
     top = scores[best]
     if top == -math.inf:  # a place known exactly and none of them there: none can be the body
         return blobs[best], 0.0
-    total = math.fsum(math.exp(s - top) for s, f in zip(scores, first, strict=True) if f == first[best])
+    total = math.fsum(math.exp(s - top) for s, f in zip(scores, first, strict=True) if not f)
     return blobs[best], 1.0 / total
 
 
@@ -821,8 +822,8 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         likely = [c for c in cands if _box_distance(c, place.col_row) <= reach]
         if not likely:
             return Identification(None, None)
-    chosen = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
-    didymos, probability = chosen
+    didymos, probability = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
+    taken = didymos
     placed = _placed(likely, exp, regions, cfg, place)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
     if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
@@ -892,7 +893,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
     # after a cut was taken by its light among them all)
-    same = (didymos.trimmed_from or didymos.label) == (chosen[0].trimmed_from or chosen[0].label)
+    same = (didymos.trimmed_from or didymos.label) == (taken.trimmed_from or taken.label)
     return Identification(didymos, dimorphos, probability if same else 1.0)
 
 
