@@ -118,11 +118,13 @@ def _calibration(cam: CameraConfig, exposure_s: float, seed: int, k_sigma: float
     return load(n), len(ranked)
 
 
-def ground_segment(scenario: Scenario, timeline: Timeline | None = None, keys: KeyRing | None = None) -> GroundSegment:
+def ground_segment(scenario: Scenario, timeline: Timeline | None = None, keys: KeyRing | None = None,
+                   calibrate: bool = True) -> GroundSegment:
     """The ground segment with its belief of the flyby, the timeline it uploads, the keys it secures TCs with and
-    its calibration of the camera's bad pixels."""
+    its calibration of the camera's bad pixels (not made when not ``calibrate``: no bad-pixel map to upload, for
+    whoever needs only the belief, as the analysis does; the calibration renders a dark frame)."""
     from ground.segment import GroundSegment
 
-    bad, found = ground_bad_pixel_map(scenario) if scenario.ground.upload_bad_pixel_map else (None, 0)
+    bad, found = ground_bad_pixel_map(scenario) if calibrate and scenario.ground.upload_bad_pixel_map else (None, 0)
     return GroundSegment(scenario.ground, ground_belief(scenario), scenario.epoch_utc, timeline, keys,
                          bad_pixel_map=bad, bad_pixels_found=found)
