@@ -264,11 +264,21 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     body, does not pull the cut along it), the brightest by mean. A lit surface is brighter than the dust around it,
     though a dense fan may hold more pixels. Only parts of at least a quarter of ``n_pixels`` compete when there are
     any (a star or a speck of noise in the dust is brighter than the surface but holds a few pixels), and with the
-    body's predicted ``place``, only those there when any is (ties: the larger, then raster order)."""
+    body's predicted ``place``, only those there when any is (ties: the larger, then raster order). When none is
+    (the brightest pixels are a star or the plume's core elsewhere in the region, and set the surface's level), the
+    body is the region's part within the place's radius, trimmed the same way."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
-        parts = [p for p in parts if _distance(p.region_centroid_col_row, place.col_row) <= place.radius_px] or parts
+        there = [p for p in parts if _distance(p.region_centroid_col_row, place.col_row) <= place.radius_px]
+        if not there:
+            # a body is at its place: a brighter star in the dust elsewhere sets a level its surface cannot reach
+            inside = regions.within(blob, place.col_row, place.radius_px, regions.free_label(first_label))
+            if inside:
+                # the parts' pixels all lie in the place's disc, so do their brightest parts' centroids: one level
+                return trimmed(regions, max(inside, key=lambda b: (b.area_px, -b.label)), n_pixels,
+                               regions.free_label(first_label), place)
+        parts = there or parts
     parts = [p for p in parts if 4 * p.area_px >= n_pixels] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
 

@@ -776,3 +776,19 @@ def test_bench_frame_with_a_crescent_beside_its_plume_and_didymos_out() -> None:
     t = _bench_trial(21, 5)
     _assert_found(t, 1)
     assert t.dimorphos.error_px <= 3.0
+
+
+@pytest.mark.parametrize("star_dn", [1500.0, 2000.0, 3000.0, 4000.0])
+def test_a_star_brighter_than_a_small_dimorphos_in_its_plume_is_not_its_surface(star_dn: float) -> None:
+    """Bench seed 31 frame 147 (a seed no change was tuned on), the star in the plume made 1,500-4,000 DN: a 6 px
+    Dimorphos at 111 deg of phase merged with its plume, which holds a star ten Dimorphos radii out, the place known
+    to 9 px. The star set the surface's level and was cut out as Dimorphos (before, on every brightness); the
+    region's part at the place is cut instead, within 5 px of the centre."""
+    scene, prediction = _bench_scene(31, 147)
+    body = scene.bodies[1]
+    near = [s for s in scene.stars if math.dist(s[:2], (body.col, body.row)) < 12.0 * body.mean_radius_px]
+    assert len(near) == 1  # the frame's star in the plume
+    stars = tuple((s[0], s[1], star_dn) if s is near[0] else s for s in scene.stars)
+    t = run_trial(replace(scene, stars=stars), 147, prediction)
+    _assert_found(t, 1)
+    assert t.dimorphos.error_px <= 5.0
