@@ -21,7 +21,9 @@ and the bad-pixel map ground would upload (dead pixels and columns, half the hot
   bodies of 3 px and more), each with its classes (``imaging_trials.failure_classes``: small, faint, phase, edge,
   close pair, plume, unrecognised trajectory; and what was reported instead);
 - every report of a body of any size not cut by the frame's edge: the share on the body it was taken for and within
-  the paper's 15 px of its centre, and the point-like Didymos identified but not reported, as likely a star as Didymos
+  the paper's 15 px of its centre; the share within 15 px of the true centre of the body it is reported as, whatever
+  the region holds most of (the paper's criterion: a sub-pixel pair or a body in its glow counts by its centre), each
+  report beyond listed; and the point-like Didymos identified but not reported, as likely a star as Didymos
   (``ImagingConfig.didymos_min_report_probability``);
 - one defect more (a saturated hot pixel or a 6 px cosmic ray on Didymos, on Dimorphos, or anywhere; same noise):
   reports whose body changed to another blob, and bodies found or lost, each listed, those of bodies the chain must
@@ -42,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import pickle
 import statistics
@@ -102,6 +105,8 @@ class Tally:
     wrong_small: int = 0
     reports: int = 0  # bodies reported (either body, any size), not cut by the frame's edge
     reports_right: int = 0  # of them, on the body they were taken for and within the paper's 15 px of its centre
+    reports_near: int = 0  # of them, within 15 px of the true centre of the body they are reported as, whatever blob
+    far_reports: list[str] = field(default_factory=list)  # the others
     withheld: int = 0  # point-like Didymos identified but not reported: as likely a star (didymos_probability)
     opencv: list[float] = field(default_factory=list)
     errors: list[list[tuple[float, float]]] = field(default_factory=lambda: [[], []])
@@ -119,9 +124,9 @@ class Tally:
                 self.found[i][j] += other.found[i][j]
                 self.swallowed_found[i][j] += other.swallowed_found[i][j]
             self.errors[i] += other.errors[i]
-        for name in ("misses", "wrong", "opencv", "far", "changed", "lost_found"):
+        for name in ("misses", "wrong", "opencv", "far", "far_reports", "changed", "lost_found"):
             getattr(self, name).extend(getattr(other, name))
-        for name in ("wrong_small", "reports", "reports_right", "withheld", "changed_must", "lost_found_must",
+        for name in ("wrong_small", "reports", "reports_right", "reports_near", "withheld", "changed_must", "lost_found_must",
                      "trials"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
@@ -158,6 +163,13 @@ def frame_tally(seed: int, k: int, defects: bool) -> Tally:
             out.reports += 1
             out.reports_right += body.truth_index == i and body.error_px is not None \
                 and body.error_px <= PAPER_LIMIT_PX
+            # the paper's criterion: the reported centre against the true centre of the body it is reported as
+            off = math.dist(blob.centroid_col_row, t.frame.truth[i].centre_512)
+            if off <= PAPER_LIMIT_PX:
+                out.reports_near += 1
+            else:
+                out.far_reports.append(f"frame {k}: {NAMES[i]} ({size:.1f} px) reported {off:.1f} px from its centre: "
+                                       f"{', '.join(failure_classes(t, i))}")
         elif i == 0:
             out.withheld += t.detections.didymos_probability < CFG.didymos_min_report_probability
         if body.truth_index == i and blob is not None and not blob.touches_edge:
@@ -227,6 +239,11 @@ def _print_tally(t: Tally, n: int, seed: int, defects: bool) -> None:
     print(f"  reports not at the edge on the body taken for, within 15 px of its centre: {t.reports_right} of "
           f"{t.reports} ({100.0 * t.reports_right / max(t.reports, 1):.2f} %); point-like Didymos not reported, as likely a "
           f"star (probability under {CFG.didymos_min_report_probability}): {t.withheld}")
+    print(f"  reports not at the edge within 15 px of the true centre of the body they are reported as, whatever the "
+          f"region holds most of (the paper's criterion): {t.reports_near} of {t.reports} "
+          f"({100.0 * t.reports_near / max(t.reports, 1):.2f} %)")
+    for line in t.far_reports:
+        print(f"    {line}")
     if defects:
         print(f"  one defect more, {t.trials} trials x 2 bodies: {len(t.changed)} reports changed to another blob "
               f"({t.changed_must} of bodies the chain must find, {len(t.changed) - t.changed_must} of smaller or "
