@@ -14,7 +14,7 @@ from scenario.model import Scenario
 
 def uploaded_nominal(scenario: Scenario) -> NominalTrajectory:
     """The nominal trajectory ground uploads at the start of the run (a-priori OBT-UTC correlation)."""
-    # ground's belief alone: the bad-pixel calibration (a dark frame rendered, 0.7 s) does not change the nominal
+    # ground's belief alone: the bad-pixel calibration (a dark frame rendered and ranked) does not change the nominal
     tc = compose.ground_segment(scenario, calibrate=False).nominal_trajectory_tc()
     return NominalTrajectory(
         ca_time_obt_s=tc.ca_obt_s, ca_distance_km=tc.ca_distance_km, speed_km_s=tc.speed_km_s,

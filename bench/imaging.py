@@ -126,8 +126,8 @@ class Tally:
             self.errors[i] += other.errors[i]
         for name in ("misses", "wrong", "opencv", "far", "far_reports", "changed", "lost_found"):
             getattr(self, name).extend(getattr(other, name))
-        for name in ("wrong_small", "reports", "reports_right", "reports_near", "withheld", "changed_must", "lost_found_must",
-                     "trials"):
+        for name in ("wrong_small", "reports", "reports_right", "reports_near", "withheld", "changed_must",
+                     "lost_found_must", "trials"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
 
