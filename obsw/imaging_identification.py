@@ -51,6 +51,8 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   raw signal is at least ``dust_cut_fraction`` of its surface's (``_without_dust``), the cut kept only when it moves
   the centroid across the Sun's direction or away from the Sun: a lit body's own faint pixels (terminator, blurred
   limb) lie symmetrically about the Sun's direction, so cutting them moves it toward the Sun only; dust does not.
+  The largest part is Didymos, and the others no larger than Dimorphos can be are candidates for it: Dimorphos
+  merged with Didymos by the dust keeps a surface of the same albedo above the cut's level.
   No threshold is tuned on a flyby: the areas come from the known sizes and the range.
 - **Dimorphos** is searched within the largest apparent radius of its orbit (plus both bodies' radii) of Didymos,
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
@@ -875,8 +877,11 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         # still larger than Didymos alone: a fan of dust fainter than its surface may be merged with it
         cut = _without_dust(regions, didymos, exp, cfg, regions.free_label(next_label))
         if cut:
-            # the other parts are dust brighter than the cut's level: not candidates for Dimorphos
-            cands = [c for c in cands if c is not didymos] + cut[:1]
+            # the other parts are brighter than the cut's level: clumps of dust, or Dimorphos merged with Didymos by
+            # the dust (its surface, of Didymos's albedo, stays above the level); those no larger than Dimorphos can be
+            # stay candidates for it, the others are dust
+            cands = [c for c in cands if c is not didymos] + cut[:1] + [
+                p for p in cut[1:] if p.area_px <= exp.dimorphos_area_max]
             didymos = cut[0]
             next_label = regions.free_label(next_label)
     if exp is not None:
