@@ -367,7 +367,8 @@ class ImagingConfig(Config):
         "rejects faint stars, the diffuse plume and small clumps of it; sqrt compression maps a 10x dimmer surface to "
         "0.32): of their peaks without a prediction, and with one, of the light each holds in the best-lit quarter "
         "of Dimorphos's expected area, the part of each disc nearest normal incidence whatever the phase and the "
-        "shading law (obsw/imaging_identification.py, aperture_dn8)",
+        "shading law (obsw/imaging_identification.py, aperture_dn8), times what the blur leaves of the peak of "
+        "Dimorphos's narrower crescent against Didymos's (_peak_kept_by_blur)",
     )
     dimorphos_max_relative_jump_didymos_diameters: float = Field(
         0.5,

@@ -58,7 +58,8 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   and, when the trajectory's uncertainty allows, within that uncertainty of where the trajectory puts it (without
   a prediction: within ``dimorphos_max_separation_didymos_diameters`` of Didymos). A candidate there must be
   bright like a body (the light of its best-lit quarter of Dimorphos's expected area at least
-  ``dimorphos_min_peak_fraction`` of Didymos's; without a prediction, its peak) and not a piece of Didymos's thin
+  ``dimorphos_min_peak_fraction`` of Didymos's, times what the blur leaves of its narrower crescent's peak,
+  ``_peak_kept_by_blur``; without a prediction, its peak) and not a piece of Didymos's thin
   crescent (beside its box and on its disc). The one continuing the last pair's relative offset wins; else the one
   holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved; when
   it need not be, with its place known, the likeliest as for Didymos, at the place itself (without a prediction: the
@@ -633,6 +634,27 @@ def apertures_dn8(regions: Regions, blobs: list[Blob], n_pixels: int) -> list[fl
     return out
 
 
+def _crescent_peak(radius_px: float, lit: float, cfg: ImagingConfig) -> float:
+    """The peak of a uniformly lit crescent of width 2 r lit (``Expected.lit_fraction``: the lit part of a disc of
+    radius r, across its middle) seen through the point-spread function (its largest sigma,
+    ``point_source_sigma_max_px``) and the pixel (a box, variance 1/12): erf(w / (2 sqrt(2) s)) of the surface's
+    brightness, linear."""
+    width = 2.0 * radius_px * lit
+    sigma = math.sqrt(cfg.point_source_sigma_max_px ** 2 + 1.0 / 12.0)
+    return math.erf(width / (2.0 * math.sqrt(2.0) * sigma)) if width > 0.0 else 0.0
+
+
+def _peak_kept_by_blur(exp: Expected, cfg: ImagingConfig) -> float:
+    """How much of Didymos's brightest light Dimorphos's, of the same albedo, can keep through the blur alone, in
+    8-bit DN (the square-root compression): the square root of the ratio of their crescents' peaks
+    (``_crescent_peak``, each body at its smallest predicted radius), at most 1. At high phase a few-pixel Dimorphos's
+    crescent is a pixel or two wide, and the blur spreads its light where Didymos's is not."""
+    k = exp.radius_factor_max
+    did = _crescent_peak(exp.didymos_radius / k, exp.lit_fraction, cfg)
+    dim = _crescent_peak(exp.dimorphos_radius / k, exp.lit_fraction, cfg)
+    return min(math.sqrt(dim / did), 1.0) if did > 0.0 else 1.0
+
+
 def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, place: _Place | None,
                       prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig,
                       regions: Regions | None) -> Blob | None:
@@ -647,7 +669,9 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         # the brightest quarter of Dimorphos's expected area on both: the part of each disc lit nearest normal
         # incidence, whatever the phase and the shading law (a whole disc's mean is far lower at high phase)
         best_lit = max(1, round(exp.dimorphos_area / 4))
-        least = cfg.dimorphos_min_peak_fraction * aperture_dn8(regions, didymos, best_lit)
+        # the blur takes more off the peak of Dimorphos's narrow crescent than off Didymos's wide one
+        least = cfg.dimorphos_min_peak_fraction * _peak_kept_by_blur(exp, cfg) \
+            * aperture_dn8(regions, didymos, best_lit)
         bright = [light >= least for light in apertures_dn8(regions, cands, best_lit)]
     else:
         least = cfg.dimorphos_min_peak_fraction * didymos.peak_dn8
