@@ -237,8 +237,8 @@ def _print_tally(t: Tally, n: int, seed: int, defects: bool) -> None:
     for line in t.wrong:
         print(f"    {line}")
     print(f"  reports not at the edge on the body taken for, within 15 px of its centre: {t.reports_right} of "
-          f"{t.reports} ({100.0 * t.reports_right / max(t.reports, 1):.2f} %); point-like Didymos not reported, as likely a "
-          f"star (probability under {CFG.didymos_min_report_probability}): {t.withheld}")
+          f"{t.reports} ({100.0 * t.reports_right / max(t.reports, 1):.2f} %); point-like Didymos not reported, as "
+          f"likely a star (probability under {CFG.didymos_min_report_probability}): {t.withheld}")
     print(f"  reports not at the edge within 15 px of the true centre of the body they are reported as, whatever the "
           f"region holds most of (the paper's criterion): {t.reports_near} of {t.reports} "
           f"({100.0 * t.reports_near / max(t.reports, 1):.2f} %)")
