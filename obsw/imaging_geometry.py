@@ -93,10 +93,13 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
     """The expectation of a frame exposed at ``obt_s`` with the attitude ``q_body_to_inertial``: the Sun's direction,
     and with a trajectory, the target's range (its corners at +-``cfg.prediction_sigma`` in C/A time and distance
     bound the sizes and the place), the apparent radii, the orbit's largest apparent radius and Dimorphos's
-    predicted position. With ``los`` (the trajectory's own estimate's line of sight), Dimorphos's place is that line
-    of sight and its uncertainty that bound when it is tighter than the corners': far from C/A a later C/A at a
-    larger distance points nearly the same way, so the corners of the time and distance box overstate the spread of
-    the direction (run 345 of the Monte Carlo campaign at C/A-152 s: 40 px for the corners, 2.1 px for the bound)."""
+    predicted position. With ``los`` (the trajectory's own estimate's line of sight, with the constant offsets of the
+    measured line of sight it solves), Dimorphos's place is that line of sight and its uncertainty that bound. The
+    corners bound only the trajectory's own line of sight: far before C/A they overstate its spread (a later C/A at a
+    larger distance points nearly the same way: run 345 of the Monte Carlo campaign at C/A-152 s, 40 px for the
+    corners, 2.1 px for the bound), and after C/A, where they converge on the departure direction, they leave out the
+    offsets (run 13 of the nominal image-level campaign, a camera misaligned by 0.034 deg: 4-6 px off with 0.2-0.5 px
+    stated; with the estimate's line of sight 0.5-3.6 px off, each within the 3-6 px stated)."""
     n = cfg.binned_size_px
     to_camera = Rotation.from_quat(q_body_to_inertial).inv()
     sun = np.asarray(targets.sun_direction_inertial, dtype=float)
@@ -120,9 +123,8 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
             spread = max(spread, math.inf if p is None else math.dist(p, place))
     if los is not None and place is not None:
         seen = _camera_px(to_camera.apply(np.asarray(los.los_inertial, dtype=float)), f, n)
-        tight = los.bound_rad * f
-        if seen is not None and tight < spread:
-            place, spread = seen, tight
+        if seen is not None:
+            place, spread = seen, los.bound_rad * f
     return FramePrediction(
         sun_camera=sun_t,
         didymos_radius_px=f * 0.5 * targets.didymos_diameter_m / rng,
