@@ -12,10 +12,12 @@ behind it, brighter or darker.
 which the image's brightness steps most: the median over the circle of the radial derivative's magnitude (the
 median, so that the step must run round most of the circle: an arc of Didymos's limb or the edge of the plume does
 not make one). A coarse pass on a 1 px grid, then a fine one on a quarter-pixel grid around the best circle
-(``_PASSES``). The circle's centre is the body's centre, taken as it is: the body is in front of Didymos or the
-plume, so its dark side steps against that brighter background too (moved back by the phase correction of a lit
-crescent's centroid, ``imaging_geometry.phase_offset_px``, it lay up to 7.1 px off on the transit frames of the tests,
-2.3 px without, and 6.8 px off in run 196 of the nominal campaign).
+(``_PASSES``). The circle's centre is the body's centre, taken as it is: the check runs on cuts of a region the body
+shares with Didymos or the plume, and a body in front of them steps against that brighter background on its dark
+side too (moved back by the phase correction of a lit crescent's centroid, ``imaging_geometry.phase_offset_px``, it
+lay up to 7.1 px off on the transit frames of the tests, 2.3 px without, and 6.8 px off in run 196 of the nominal
+campaign). Against the dark sky a circle can sit inside the crescent, its dark half on the terminator: 5.3 px off in
+the worst-early-far flyby at 86 deg of phase.
 
 ``limb_corrected`` takes the circle's centre only where the cut's centroid disagrees with it by more than half a
 radius: for a cut of the surface alone the centroid is the better of the two (the circle sits up to a third of a
