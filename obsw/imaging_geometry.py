@@ -117,14 +117,13 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
     nearest = min([rng] + [float(c.range_m(obt_s)) for c in corners])
     place = _camera_px(to_camera.apply(trajectory.los_inertial(obt_s)), f, n)
     spread = 0.0
-    if place is not None:
+    if los is not None and place is not None \
+            and (seen := _camera_px(to_camera.apply(np.asarray(los.los_inertial, dtype=float)), f, n)) is not None:
+        place, spread = seen, los.bound_rad * f
+    elif place is not None:  # the corners' spread, needed only without the estimate's line of sight
         for c in corners:
             p = _camera_px(to_camera.apply(c.los_inertial(obt_s)), f, n)
             spread = max(spread, math.inf if p is None else math.dist(p, place))
-    if los is not None and place is not None:
-        seen = _camera_px(to_camera.apply(np.asarray(los.los_inertial, dtype=float)), f, n)
-        if seen is not None:
-            place, spread = seen, los.bound_rad * f
     return FramePrediction(
         sun_camera=sun_t,
         didymos_radius_px=f * 0.5 * targets.didymos_diameter_m / rng,
