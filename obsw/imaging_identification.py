@@ -41,6 +41,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   trimmed to its brightest pixels of
   Dimorphos's expected area, and of their parts the brightest by mean among those of at least a quarter of that
   area (``trimmed``): the ejecta leave Dimorphos and fade away from it, and a star in the dust holds a few pixels.
+  With its place known, a smaller part competes too where the lit part's centroid is expected (within the place's
+  uncertainty, the centroid noise and the phase correction's error, ``_lit_agrees``), when it is no point source: at
+  high phase the plume's core beside a thin crescent holds most of the brightest pixels.
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
@@ -60,7 +63,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   bright like a body (the light of its best-lit quarter of Dimorphos's expected area at least
   ``dimorphos_min_peak_fraction`` of Didymos's, times what the blur leaves of its narrower crescent's peak,
   ``_peak_kept_by_blur``; without a prediction, its peak) and not a piece of Didymos's thin
-  crescent (beside its box and on its disc). The one continuing the last pair's relative offset wins; else the one
+  crescent (beside its box and on its disc). With its place known, only those whose centroid, as it would be
+  reported (cut to its surface), agrees with it (``_lit_agrees``) when any does: a star smeared beside a crescent
+  merged with the plume, or the plume's core cut out of a fan beside a crescent, lies within the body's radius of the
+  place, off its lit part's expected centroid. The one continuing the last pair's relative offset wins; else the one
   holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved; when
   it need not be, with its place known, the likeliest as for Didymos, at the place itself (without a prediction: the
   largest up to ``dimorphos_max_area_fraction`` of Didymos).
@@ -260,16 +266,20 @@ def surface_pixels(regions: Regions, blob: Blob, n_pixels: int) -> int:
     return int(kernels.surface_count(vals, min(max(1, int(n_pixels)), vals.size), regions.threshold_dn8))
 
 
-def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None) -> Blob:
+def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None,
+            cfg: ImagingConfig | None = None) -> Blob:
     """The body of ``n_pixels`` expected pixels in a blob that holds more: of the 8-connected parts of its brightest
     ``n_pixels``, or of its surface when that is fewer (``surface_pixels``, the level set by its best-lit quarter of
     ``n_pixels``: a body smaller than expected still sets it; dust fainter than half the surface, brighter near the
     body, does not pull the cut along it), the brightest by mean. A lit surface is brighter than the dust around it,
     though a dense fan may hold more pixels. Only parts of at least a quarter of ``n_pixels`` compete when there are
     any (a star or a speck of noise in the dust is brighter than the surface but holds a few pixels), and with the
-    body's predicted ``place``, only those there when any is (ties: the larger, then raster order). When none is
-    (the brightest pixels are a star or the plume's core elsewhere in the region, and set the surface's level), the
-    body is the region's part within the place's radius, trimmed the same way."""
+    body's predicted ``place``, only those there when any is (ties: the larger, then raster order); with it, a smaller
+    part competes too when its centroid is where the lit part's is expected (``_lit_agrees``), it can be a body
+    (``min_body_area_px``) and is not a point source (at high phase the plume's core beside a thin crescent can hold
+    most of its brightest pixels). When none is there (the brightest pixels are a star or the plume's core elsewhere
+    in the region, and set the surface's level), the body is the region's part within the place's radius, trimmed
+    the same way."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
@@ -280,9 +290,14 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
             if inside:
                 # the parts' pixels all lie in the place's disc, so do their brightest parts' centroids: one level
                 return trimmed(regions, max(inside, key=lambda b: (b.area_px, -b.label)), n_pixels,
-                               regions.free_label(first_label), place)
+                               regions.free_label(first_label), place, cfg)
         parts = there or parts
-    parts = [p for p in parts if 4 * p.area_px >= n_pixels] or parts
+    # a part smaller than a quarter competes when it lies where the crescent's centroid is expected and is not a
+    # point source: at high phase the plume's core beside a crescent can hold more of the brightest pixels than the
+    # thin crescent itself
+    parts = [p for p in parts if 4 * p.area_px >= n_pixels
+             or place is not None and cfg is not None and p.area_px >= cfg.min_body_area_px and _lit_agrees(p, place)
+             and not _point_source(regions, p, cfg)] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
 
 
@@ -567,11 +582,14 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
 @dataclass(frozen=True, slots=True)
 class _Place:
     """Where the trajectory puts Dimorphos: the point, the radius around it Dimorphos's region centroid is in, and
-    the place's one-sigma error."""
+    the place's one-sigma error; where its lit part's centroid is expected (the phase offset of its predicted radius
+    from the point), and the radius around the point its phase-corrected centroid is in (``_lit_agrees``)."""
 
     col_row: tuple[float, float]
     radius_px: float
     sigma_px: float
+    lit_col_row: tuple[float, float]
+    report_radius_px: float
 
 
 def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: ImagingConfig) -> _Place | None:
@@ -579,10 +597,26 @@ def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: Imagin
     if exp is None or prediction is None or prediction.dimorphos_col_row is None \
             or prediction.dimorphos_uncertainty_px is None or not math.isfinite(prediction.dimorphos_uncertainty_px):
         return None
+    c, r = prediction.dimorphos_col_row
+    shift_col, shift_row = (s * exp.dimorphos_radius for s in exp.lit_shift_per_radius)
+    # the phase correction takes the predicted radius: a body k times larger (or smaller) has its lit centroid
+    # (k - 1) times the offset further (or nearer)
+    correction_error = math.hypot(shift_col, shift_row) * (exp.radius_factor_max - 1.0)
     # the uncertainty spans prediction_sigma sigmas; never tighter than a centroid's own jitter
-    return _Place(prediction.dimorphos_col_row,
+    return _Place((c, r),
                   prediction.dimorphos_uncertainty_px + exp.dimorphos_radius_max + cfg.centroid_noise_px,
-                  max(prediction.dimorphos_uncertainty_px, cfg.centroid_noise_px) / cfg.prediction_sigma)
+                  max(prediction.dimorphos_uncertainty_px, cfg.centroid_noise_px) / cfg.prediction_sigma,
+                  (c + shift_col, r + shift_row),
+                  prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px + correction_error)
+
+
+def _lit_agrees(blob: Blob, place: _Place) -> bool:
+    """Whether a blob's region centroid, taken as Dimorphos's lit part, lies where the prediction puts that: within
+    the place's uncertainty, the centroid's jitter and the phase correction's error for the body's size
+    (``_Place.report_radius_px``) of the lit part's expected centroid, where its line of sight would be accepted. A
+    cut of the plume's core beside a crescent, or a star smeared beside it, can lie within the body's radius of the
+    place, as the crescent's centroid does, and still not agree."""
+    return _distance(blob.region_centroid_col_row, place.lit_col_row) <= place.report_radius_px
 
 
 def _didymos_may_be_out(place: _Place, exp: Expected, n: int) -> bool:
@@ -687,6 +721,18 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     ]
     if not in_gate:
         return None
+    if place is not None and exp is not None and regions is not None and len(in_gate) > 1:
+        # those whose centroid agrees with the place when any does, each taken as it would be reported (cut to its
+        # surface, ``_dimorphos_surface``): a star smeared beside a crescent merged with the plume, or the plume's
+        # core cut out of a fan beside a crescent, lies within the body's radius of the place, off the lit part's
+        # expected centroid
+        label = regions.free_label(int(regions.components.area_px.size) + 1)
+        agree = []
+        for b in in_gate:
+            if _lit_agrees(_dimorphos_surface(regions, b, exp, label, place, cfg), place):
+                agree.append(b)
+            label = regions.free_label(label)
+        in_gate = agree or in_gate
     if prev_did is not None and prev_dim is not None:
         predicted = _relative(prev_dim, prev_did)
         jump = _relative_jump_px(didymos, cfg, exp)
@@ -922,7 +968,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         next_label = regions.free_label(next_label)
         if pieces:
             piece = trimmed(regions, max(pieces, key=lambda b: (b.area_px, -b.label)), round(exp.dimorphos_area),
-                            next_label, place)
+                            next_label, place, cfg)
             next_label = regions.free_label(next_label)
             c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
             centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
@@ -981,7 +1027,7 @@ def _dimorphos_surface(regions: Regions | None, dimorphos: Blob, exp: Expected, 
                 dimorphos.trimmed_from
                 or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * reach
                 or dimorphos.area_px > math.pi * (exp.dimorphos_radius + reach + 1.0) ** 2)):
-        return trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place)
+        return trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place, cfg)
     return dimorphos
 
 

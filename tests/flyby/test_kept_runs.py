@@ -21,8 +21,8 @@ from scenario.model import load_run_inputs
 
 KEPT = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "mc"
 Outcome = tuple[list[TruthRecord], list[ReceivedPacket]]  # a run's truth and the telemetry ground received
-NAMES = ("nominal-run00545", "nominal-run00345", "nominal-run00957", "nominal-run00432", "worst-late-near-run00073",
-         "worst-late-near-run00022")
+NAMES = ("nominal-run00545", "nominal-run00345", "nominal-run00957", "nominal-run00432", "nominal-run00218",
+         "worst-late-near-run00073", "worst-late-near-run00022")
 
 
 def _run(name: str) -> Outcome:
@@ -83,6 +83,15 @@ def test_run_432_finds_dimorphos_by_its_limb_at_63_deg_of_phase(runs: dict[str, 
     Didymos, in front of Didymos's limb; its cut by brightness kept Didymos's brighter surface, 15.35 px off) reports
     every Dimorphos centroid within 10 px of its true centre: the limb check runs up to 70 deg of phase (90 since)."""
     _assert_centroids_within_10_px(_replayed(runs, "nominal-run00432"))
+
+
+def test_run_218_does_not_take_a_smeared_star_beside_the_crescent_for_dimorphos(
+        runs: dict[str, Future[Outcome]]) -> None:
+    """Run 218 of the image-level campaign on c97a1a7 (at C/A+16 s a star smeared by the slew lay 14 px below a 7 px
+    crescent merged with the plume, within the body's largest radius of a place known to 3.2 px, and was reported as
+    Dimorphos: 14.80 px) reports every Dimorphos centroid within 10 px of its true centre: a candidate must lie where
+    the lit part's centroid is expected when any does."""
+    _assert_centroids_within_10_px(_replayed(runs, "nominal-run00218"))
 
 
 def test_late_corner_run_73_images_once_the_slew_onto_the_target_is_done(runs: dict[str, Future[Outcome]]) -> None:

@@ -54,13 +54,15 @@ class Ellipsoid:
 @dataclass(frozen=True)
 class Plume:
     """A fan of ejecta from a body: axis angle in the image (deg from +columns), half-angle, length (px), brightness
-    at one body radius from the source (DN) and fall-off exponent (brightness ~ (r / r0)^-exponent)."""
+    at one body radius from the source (DN), fall-off exponent (brightness ~ (r / r0)^-exponent) and where it starts,
+    in body radii from the source."""
 
     axis_deg: float
     half_angle_deg: float
     length_px: float
     brightness_dn: float
     exponent: float = 1.0
+    inner_radii: float = 0.5  # the dust starts this many source radii out (the slowest ejecta's reach)
 
 
 @dataclass(frozen=True)
@@ -301,7 +303,7 @@ def _plume(plume: Plume, source: Ellipsoid, size: int) -> np.ndarray:
     dist = np.hypot(dx, dy)
     off_axis = np.abs(np.angle(np.exp(1j * (np.arctan2(dy, dx) - math.radians(plume.axis_deg)))))
     half = math.radians(plume.half_angle_deg)
-    inside = (off_axis < half) & (dist > 0.5 * r_src) & (dist < plume.length_px)
+    inside = (off_axis < half) & (dist > plume.inner_radii * r_src) & (dist < plume.length_px)
     level = plume.brightness_dn * (np.maximum(dist, r_src) / max(r_src, 0.5)) ** -plume.exponent
     out[r0:r1, c0:c1] = np.where(inside, level * np.cos(0.5 * math.pi * off_axis / half), 0.0)
     return out
