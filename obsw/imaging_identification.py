@@ -43,7 +43,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   area (``trimmed``): the ejecta leave Dimorphos and fade away from it, and a star in the dust holds a few pixels.
   With its place known, a smaller part competes too where the lit part's centroid is expected (within the place's
   uncertainty, the centroid noise and the phase correction's error, ``_lit_agrees``), when it is no point source: at
-  high phase the plume's core beside a thin crescent holds most of the brightest pixels.
+  high phase the plume's core beside a thin crescent holds most of the brightest pixels. When no part lies there, at
+  phases where the limb is not fitted (``limb_fit_max_phase_deg``), the brightest half of the pixels is cut again,
+  and so on, until a part does (``_lit_part_above``): a core as bright as the crescent merges with it at the
+  expected area's level and parts from it at a higher one.
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
@@ -277,9 +280,10 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     body's predicted ``place``, only those there when any is (ties: the larger, then raster order); with it, a smaller
     part competes too when its centroid is where the lit part's is expected (``_lit_agrees``), it can be a body
     (``min_body_area_px``) and is not a point source (at high phase the plume's core beside a thin crescent can hold
-    most of its brightest pixels). When none is there (the brightest pixels are a star or the plume's core elsewhere
-    in the region, and set the surface's level), the body is the region's part within the place's radius, trimmed
-    the same way."""
+    most of its brightest pixels), and when none is, at phases where the limb is not fitted, the brightest such part
+    of a higher level (``_lit_part_above``). When none is there (the brightest pixels are a star or the plume's core
+    elsewhere in the region, and set the surface's level), the body is the region's part within the place's radius,
+    trimmed the same way."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
@@ -292,13 +296,44 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
                 return trimmed(regions, max(inside, key=lambda b: (b.area_px, -b.label)), n_pixels,
                                regions.free_label(first_label), place, cfg)
         parts = there or parts
+    lit = [] if place is None or cfg is None else _lit_parts(regions, parts, place, cfg)
+    if place is not None and cfg is not None and not lit \
+            and (not cfg.limb_fit or place.phase_deg > cfg.limb_fit_max_phase_deg):
+        # the plume's core as bright as the crescent merges with it at this level: at a higher one they part (where
+        # the limb is fitted, its circle judges a cut off the body: a broad disc's best-lit part may lie anywhere)
+        deeper = _lit_part_above(regions, blob, min(surface, n_pixels) // 2, regions.free_label(first_label), place,
+                                 cfg)
+        if deeper is not None:
+            return deeper
     # a part smaller than a quarter competes when it lies where the crescent's centroid is expected and is not a
-    # point source: at high phase the plume's core beside a crescent can hold more of the brightest pixels than the
-    # thin crescent itself
-    parts = [p for p in parts if 4 * p.area_px >= n_pixels
-             or place is not None and cfg is not None and p.area_px >= cfg.min_body_area_px and _lit_agrees(p, place)
-             and not _point_source(regions, p, cfg)] or parts
+    # point source: at high phase the plume's core beside a thin crescent can hold more of the brightest pixels than
+    # the thin crescent itself
+    chosen_by_place = {id(p) for p in lit}
+    parts = [p for p in parts if 4 * p.area_px >= n_pixels or id(p) in chosen_by_place] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
+
+
+def _lit_parts(regions: Regions, parts: list[Blob], place: _Place, cfg: ImagingConfig) -> list[Blob]:
+    """The parts that may be Dimorphos's lit surface by where they are: their centroid where the lit part's is
+    expected (``_lit_agrees``), at least a body's area and not a point source (a star in the dust)."""
+    return [p for p in parts if p.area_px >= cfg.min_body_area_px and _lit_agrees(p, place)
+            and not _point_source(regions, p, cfg)]
+
+
+def _lit_part_above(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place,
+                    cfg: ImagingConfig) -> Blob | None:
+    """The brightest by mean of the ``_lit_parts`` of a blob's brightest ``n_pixels``, or of half as many, and so on
+    down to a body's area; None when none is. Where the plume's core is as bright as a crescent beside it, the two
+    make one part at the expected area's level and part at a higher one: the crescent's best-lit pixels lie nearer
+    its limb than its centroid, by less than the core lies off it."""
+    n = n_pixels
+    while n >= cfg.min_body_area_px:
+        lit = _lit_parts(regions, regions.parts(blob, n, first_label), place, cfg)
+        if lit:
+            return max(lit, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
+        first_label = regions.free_label(first_label)
+        n //= 2
+    return None
 
 
 @dataclass(frozen=True, slots=True)
@@ -590,6 +625,7 @@ class _Place:
     sigma_px: float
     lit_col_row: tuple[float, float]
     report_radius_px: float
+    phase_deg: float = 0.0  # the phase angle near the boresight
 
 
 def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: ImagingConfig) -> _Place | None:
@@ -607,7 +643,8 @@ def _place(prediction: FramePrediction | None, exp: Expected | None, cfg: Imagin
                   prediction.dimorphos_uncertainty_px + exp.dimorphos_radius_max + cfg.centroid_noise_px,
                   max(prediction.dimorphos_uncertainty_px, cfg.centroid_noise_px) / cfg.prediction_sigma,
                   (c + shift_col, r + shift_row),
-                  prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px + correction_error)
+                  prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px + correction_error,
+                  math.degrees(math.acos(min(1.0, max(-1.0, 2.0 * exp.lit_fraction - 1.0)))))
 
 
 def _lit_agrees(blob: Blob, place: _Place) -> bool:

@@ -22,7 +22,7 @@ from scenario.model import load_run_inputs
 KEPT = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "mc"
 Outcome = tuple[list[TruthRecord], list[ReceivedPacket]]  # a run's truth and the telemetry ground received
 NAMES = ("nominal-run00545", "nominal-run00345", "nominal-run00957", "nominal-run00432", "nominal-run00218",
-         "worst-late-near-run00073", "worst-late-near-run00022")
+         "nominal-run00127", "worst-late-near-run00073", "worst-late-near-run00022")
 
 
 def _run(name: str) -> Outcome:
@@ -92,6 +92,14 @@ def test_run_218_does_not_take_a_smeared_star_beside_the_crescent_for_dimorphos(
     Dimorphos: 14.80 px) reports every Dimorphos centroid within 10 px of its true centre: a candidate must lie where
     the lit part's centroid is expected when any does."""
     _assert_centroids_within_10_px(_replayed(runs, "nominal-run00218"))
+
+
+def test_run_127_cuts_the_crescent_from_the_plume_core_as_bright_beside_it(runs: dict[str, Future[Outcome]]) -> None:
+    """Run 127 of the image-level campaign on 75ed4d8 (at C/A+6 s, 93 deg of phase, the plume's core as bright as
+    the crescent beside it made one part of their region's brightest pixels, 11 px off the lit part's expected
+    centroid: 10.35 px) reports every Dimorphos centroid within 10 px of its true centre: a higher level parts
+    them."""
+    _assert_centroids_within_10_px(_replayed(runs, "nominal-run00127"))
 
 
 def test_late_corner_run_73_images_once_the_slew_onto_the_target_is_done(runs: dict[str, Future[Outcome]]) -> None:
