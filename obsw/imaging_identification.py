@@ -283,7 +283,8 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     most of its brightest pixels), and when none is, at phases where the limb is not fitted, the brightest such part
     of a higher level (``_lit_part_above``). When none is there (the brightest pixels are a star or the plume's core
     elsewhere in the region, and set the surface's level), the body is the region's part within the place's radius,
-    trimmed the same way."""
+    trimmed the same way. The rules by where the lit part is expected need ``cfg`` (the body's smallest area, the
+    point-spread function, the limb fit's phases); without it they are not applied."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
