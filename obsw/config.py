@@ -446,11 +446,30 @@ class ImagingConfig(Config):
         ge=0,
         le=1,
         description="smallest probability that a point source taken for Didymos (its light spread no more than "
-        "point_source_sigma_max_px allows) is Didymos rather than a star, for it to be reported: the normalised "
-        "light-and-place likelihood of obsw/imaging_identification.py (_point_likelihood) over the point sources it "
-        "was chosen among. Shape cannot tell such a Didymos from a star; below it Didymos is reported unseen (a wrong "
-        "line of sight is worse than none) and still serves the pair's continuity. 0.9: a conventional confidence "
+        "point_source_sigma_max_px allows) is Didymos rather than a star, for it to be reported: its light-and-place "
+        "likelihood against the frame's stars (obsw/imaging_identification.py, _likeliest) over those of the point "
+        "sources it was chosen among and of Didymos being none of them (unresolved_body_detected_prior). Shape "
+        "cannot tell such a Didymos from a star; below it Didymos is reported unseen (a wrong line of sight is worse "
+        "than none) and still serves the pair's continuity. 0.9: a conventional confidence "
         "(bench/imaging.py prints the reports it withholds; README, imaging chain)",
+    )
+    dimorphos_min_report_probability: float = Field(
+        0.9,
+        ge=0,
+        le=1,
+        description="smallest probability that a point source taken for an unresolved Dimorphos is Dimorphos rather "
+        "than a star, for it to be reported, as didymos_min_report_probability for Didymos; below it Dimorphos is "
+        "reported unseen. 0.9: the same conventional confidence",
+    )
+    unresolved_body_detected_prior: float = Field(
+        0.5,
+        gt=0,
+        le=1,
+        description="prior probability that an unresolved body is among the frame's point sources at all (bright "
+        "enough to be detected and not merged with another), against which the report probabilities weigh each "
+        "point source near the body's place as the body or as one of the frame's stars "
+        "(obsw/imaging_identification.py, _StarField). 0.5: even odds, no brightness model of an unresolved body on "
+        "board; 1 takes the body to be one of them always",
     )
     phase_correction: bool = Field(
         True,

@@ -20,8 +20,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
   likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
   first when Didymos may be resolved (a star never is); without a prediction, the largest. When the blob so chosen
-  is a point source, that choice comes with its probability, its likelihood over the sum of all the point sources'
-  it was chosen among (``Identification.didymos_probability``): the imaging chain does not report a Didymos under
+  is a point source, that choice comes with its probability (``Identification.didymos_probability``): its odds
+  against being a star (the place's density over that of the frame's stars, its other point sources, ``_StarField``)
+  over the sum of the point sources' odds and of the odds that Didymos is none of them, undetected or merged
+  (``unresolved_body_detected_prior``): the imaging chain does not report a Didymos under
   ``didymos_min_report_probability``, as likely a star. With a pair seen in
   earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
@@ -71,8 +73,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   merged with the plume, or the plume's core cut out of a fan beside a crescent, lies within the body's radius of the
   place, off its lit part's expected centroid. The one continuing the last pair's relative offset wins; else the one
   holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved; when
-  it need not be, with its place known, the likeliest as for Didymos, at the place itself (without a prediction: the
-  largest up to ``dimorphos_max_area_fraction`` of Didymos).
+  it need not be, with its place known, the likeliest as for Didymos, at the place itself, reported when the
+  probability of both, Didymos's times its own given Didymos (the place's Gaussian within the gate), is at least
+  ``dimorphos_min_report_probability`` (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of
+  Didymos).
 - **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
   its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
   the radius of a disc whose lit part has the region's area).
@@ -85,6 +89,7 @@ from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
+from scipy.special import chndtr
 
 from obsw import imaging_kernels as kernels
 from obsw.config import ImagingConfig
@@ -469,20 +474,22 @@ def _largest(blobs: list[Blob]) -> Blob:
 
 
 def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
-                  place: _Place | None) -> tuple[Blob, float]:
+                  place: _Place | None, stars: _StarField | None = None) -> tuple[Blob, float]:
     """The blob holding the most light in Didymos's expected area (``aperture_dn8``): Didymos's lit surface, not a
     fainter clump of ejecta of its size or a small star; and when Didymos must be resolved, not a point source
     however bright (a star: ``_point_source``); when it need not be, with Dimorphos's place known, the most likely
     (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest. With
-    the probability that it is Didymos when it was chosen among point sources that way (``_likeliest``), else 1."""
+    the probability that it is Didymos when it was chosen among point sources that way (``_likeliest``, against the
+    frame's ``stars`` when given), else 1; a lone point source near the place gets its probability against the stars
+    too."""
     if exp is None or regions is None:
         return _largest(blobs), 1.0
     n = round(exp.didymos_area)
     lights = apertures_dn8(regions, blobs, n)
     resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
-    if place is not None and _placed(blobs, exp, regions, cfg, place):
+    if place is not None and (_placed(blobs, exp, regions, cfg, place) or (stars is not None and not resolved)):
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
-        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg)
+        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg, stars)
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
     if resolved and _point_source(regions, blobs[best], cfg):
         # a star brighter than a small Didymos: the brightest extended candidate, if any
@@ -534,12 +541,67 @@ def _point_likelihood(blob: Blob, light: float, place: _Place, reach_px: float) 
     return log_light - 0.5 * (beyond / place.sigma_px) ** 2
 
 
+@dataclass(frozen=True, slots=True)
+class _StarField:
+    """The frame's point sources taken as a sample of its stars (at most one of them is Didymos): how many per
+    square px, the faintest one's light and the most a point source can hold (8-bit DN above the threshold, in the
+    body's expected area). Stars, unlike the body, are anywhere in the image."""
+
+    density_px2: float
+    faintest_dn8: float
+    brightest_dn8: float
+
+
+def _star_field(cands: list[Blob], n_pixels: int, regions: Regions, cfg: ImagingConfig) -> _StarField:
+    """The ``_StarField`` of a frame's candidates, lights in a body's expected area of ``n_pixels``: the point sources
+    among them, all but one (the body, if it is one of them) stars, and at least one star in the frame (a sky without
+    one is not told apart from a few)."""
+    points = [c for c in cands if _point_source(regions, c, cfg)]
+    lights = [x for x in apertures_dn8(regions, points, n_pixels) if x > 0.0] if points else []
+    brightest = max(255.0 - regions.threshold_dn8, 1.0)
+    faintest = min(min(lights), brightest) if lights else 1.0
+    return _StarField(max(len(points) - 1, 1) / float(cfg.binned_size_px) ** 2, faintest, brightest)
+
+
+def _spread_area_px2(sigma_px: float, reach_px: float) -> float:
+    """The integral over the image plane of ``_point_likelihood``'s place term, exp(-(d - reach)^2 / (2 sigma^2))
+    beyond the reach and 1 within it: pi R^2 + 2 pi (R sigma sqrt(pi / 2) + sigma^2), px^2 (2 pi sigma^2 for a
+    Gaussian about a point)."""
+    return math.pi * reach_px ** 2 + 2.0 * math.pi * (reach_px * sigma_px * math.sqrt(0.5 * math.pi) + sigma_px ** 2)
+
+
+def _gaussian_share_in_disc(place: _Place, centre: tuple[float, float], radius_px: float) -> float:
+    """The share of the place's 2-D Gaussian (one ``_Place.sigma_px``) within ``radius_px`` of ``centre``: where the
+    body may be once another body's position bounds it. The squared distance from the Gaussian's mean over sigma^2 is
+    a noncentral chi-square of 2 degrees of freedom, noncentrality (d / sigma)^2 for a disc d from the mean."""
+    d = _distance(centre, place.col_row)
+    return float(chndtr((radius_px / place.sigma_px) ** 2, 2.0, (d / place.sigma_px) ** 2))
+
+
+def _star_log_odds(place: _Place, stars: _StarField, prior: float, spread_px2: float) -> float:
+    """Log of the weight of "the body is none of the point sources" in ``_point_likelihood``'s units: the odds
+    against the body being among them, (1 - prior) / prior, over the constant that makes a ``_point_likelihood`` the
+    log-odds of a point source being the body rather than a star. That odds is the density of the body's position
+    (the place term over ``spread_px2``, its integral where the body may be) over the stars' density, times the
+    light's over a star's: for stars counted as the square of the flux above the faintest F0, density F0 / F^2, and a
+    body's light equally likely on a log scale up to the brightest F1, density 1 / (F ln(F1 / F0)), the ratio is
+    F / (F0 ln(F1 / F0))."""
+    if prior >= 1.0:
+        return -math.inf
+    log_range = math.log(max(stars.brightest_dn8 / stars.faintest_dn8, math.e))
+    constant = -math.log(spread_px2) - math.log(stars.density_px2) - math.log(stars.faintest_dn8 * log_range)
+    return math.log((1.0 - prior) / prior) - constant
+
+
 def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: float, may_be_resolved: bool,
-               regions: Regions, cfg: ImagingConfig) -> tuple[Blob, float]:
+               regions: Regions, cfg: ImagingConfig, stars: _StarField | None = None,
+               bound: tuple[tuple[float, float], float] | None = None) -> tuple[Blob, float]:
     """The blob of highest ``_point_likelihood`` (ties: more light, larger, first), extended blobs first when the
     body may be resolved: a star is a point source. With the probability that it is the body: for a point source,
-    its likelihood over the sum of the point sources' (exactly one of them being the body); 1 for an extended blob
-    taken first (its shape told it from the stars)."""
+    its likelihood over the sum of the point sources' and, given the frame's ``stars``, of the body being none of
+    them (``_star_log_odds``, ``cfg.unresolved_body_detected_prior``; without them, exactly one being the body);
+    1 for an extended blob taken first (its shape told it from the stars). ``bound``: a centre and radius the body
+    is within (Dimorphos within its orbit's reach of Didymos), the place's Gaussian taken within it only."""
     first = [may_be_resolved and not _point_source(regions, b, cfg) for b in blobs]
     scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
     best = max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))
@@ -548,8 +610,14 @@ def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: 
     top = scores[best]
     if top == -math.inf:  # a place known exactly and none of them there: none can be the body
         return blobs[best], 0.0
-    total = math.fsum(math.exp(s - top) for s, f in zip(scores, first, strict=True) if not f)
-    return blobs[best], 1.0 / total
+    others = [s for s, f in zip(scores, first, strict=True) if not f]
+    if stars is not None and place.sigma_px > 0.0:
+        spread = _spread_area_px2(place.sigma_px, reach_px)
+        if bound is not None:
+            spread *= max(_gaussian_share_in_disc(place, *bound), 1e-300)
+        others.append(_star_log_odds(place, stars, cfg.unresolved_body_detected_prior, spread))
+    top = max(top, max(others))
+    return blobs[best], math.exp(scores[best] - top) / math.fsum(math.exp(s - top) for s in others)
 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
@@ -596,8 +664,12 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
                     prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None, place: _Place | None
                     ) -> tuple[Blob, float]:
     """Didymos among the ``likely`` candidates (see the module docstring), with the probability that it is
-    (``_best_didymos``); ``cands`` are all candidates."""
-    didymos, probability = _best_didymos(likely, exp, regions, cfg, place)
+    (``_best_didymos``); ``cands`` are all candidates, the frame's stars among them."""
+    stars = None
+    if place is not None and exp is not None and regions is not None \
+            and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
+        stars = _star_field(cands, round(exp.didymos_area), regions, cfg)
+    didymos, probability = _best_didymos(likely, exp, regions, cfg, place, stars)
     if prev_did is not None and prev_dim is not None:
         # prefer a Didymos with a companion where the previous relative offset puts Dimorphos
         paired = _with_companion(likely, cands, _relative(prev_dim, prev_did), cfg, exp)
@@ -611,7 +683,7 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
             paired = [c for c, light in zip(paired, apertures_dn8(regions, paired, n), strict=True)
                       if light >= least or c.mean_dn8 - regions.threshold_dn8 >= surface]
         if paired:
-            didymos, probability = _best_didymos(paired, exp, regions, cfg, place)
+            didymos, probability = _best_didymos(paired, exp, regions, cfg, place, stars)
     return didymos, probability
 
 
@@ -729,8 +801,11 @@ def _peak_kept_by_blur(exp: Expected, cfg: ImagingConfig) -> float:
 
 def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, place: _Place | None,
                       prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig,
-                      regions: Regions | None) -> Blob | None:
-    """Dimorphos among the candidates, Didymos chosen (see the module docstring); None if not seen."""
+                      regions: Regions | None, didymos_probability: float = 1.0) -> Blob | None:
+    """Dimorphos among the candidates, Didymos chosen with ``didymos_probability`` (see the module docstring); None if
+    not seen. An unresolved Dimorphos chosen among point sources by its place, within the gate about Didymos, is
+    reported when the probability of both, Didymos's times its own given Didymos, is at least
+    ``dimorphos_min_report_probability``: a point source beside a star taken for Didymos is as likely a star."""
     gate = _dimorphos_gate(didymos, exp, cfg)
     origin = didymos.region_centroid_col_row
 
@@ -789,10 +864,12 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
         ranked = sorted(range(len(in_gate)), reverse=True,
                         key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))
         return next((in_gate[i] for i in ranked if not _point_source(regions, in_gate[i], cfg)), None)
-    if place is not None and len(in_gate) > 1:
-        # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself
+    if place is not None:
+        # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself, within the gate
         may = _must_be_resolved(exp.dimorphos_radius * exp.radius_factor_max, regions, cfg)
-        return _likeliest(in_gate, lights, place, 0.0, may, regions, cfg)[0]
+        chosen, probability = _likeliest(in_gate, lights, place, 0.0, may, regions, cfg,
+                                         _star_field(cands, n, regions, cfg), (origin, gate))
+        return chosen if didymos_probability * probability >= cfg.dimorphos_min_report_probability else None
     return in_gate[max(range(len(in_gate)), key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
 
 
@@ -964,7 +1041,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         # closer than the orbit's radius (the place then tells Dimorphos from Didymos), or where the last pair's
         # offset puts it from the part taken for Didymos
         split = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg, next_label, placed)
-        found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions)
+        found = _choose_dimorphos(split[0], split[2], exp, place, prev_did, prev_dim, cfg, regions, probability)
         if found is not None and found.trimmed_from == (didymos.trimmed_from or didymos.label) \
                 and (found.area_px <= exp.dimorphos_area_max
                      or place is not None and place.radius_px < exp.orbit_radius_max
@@ -994,7 +1071,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             next_label = regions.free_label(next_label)
     if exp is not None:
         exp = _sized_by_didymos(exp, didymos, cfg)
-    dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions)
+    dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions, probability)
     if dimorphos is None and place is not None and exp is not None and regions is not None \
             and 2.0 * place.radius_px < exp.orbit_radius_max:
         # Dimorphos merged with Didymos's region by ejecta brighter than its surface: the trajectory bounds where
@@ -1011,7 +1088,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
             centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
             if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:
-                dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions)
+                dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions, probability)
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
