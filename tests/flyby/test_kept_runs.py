@@ -22,7 +22,7 @@ from scenario.model import load_run_inputs
 KEPT = Path(__file__).resolve().parents[2] / "configs" / "scenarios" / "mc"
 Outcome = tuple[list[TruthRecord], list[ReceivedPacket]]  # a run's truth and the telemetry ground received
 NAMES = ("nominal-run00545", "nominal-run00345", "nominal-run00957", "nominal-run00432", "nominal-run00218",
-         "nominal-run00127", "worst-late-near-run00073", "worst-late-near-run00022")
+         "nominal-run00127", "nominal-run00881", "worst-late-near-run00073", "worst-late-near-run00022")
 
 
 def _run(name: str) -> Outcome:
@@ -100,6 +100,13 @@ def test_run_127_cuts_the_crescent_from_the_plume_core_as_bright_beside_it(runs:
     centroid: 10.35 px) reports every Dimorphos centroid within 10 px of its true centre: a higher level parts
     them."""
     _assert_centroids_within_10_px(_replayed(runs, "nominal-run00127"))
+
+
+def test_run_881_takes_the_limb_on_the_place_for_a_cut_off_it(runs: dict[str, Future[Outcome]]) -> None:
+    """Run 881 of the image-level campaign on 70e093e (at C/A-6 s, 20 deg of phase, the cut of the region Dimorphos
+    shares with Didymos lay 7.5 px from a place known to 4 px and within half a radius of the limb's circle on the
+    place, and was kept: 11.10 px) reports every Dimorphos centroid within 10 px of its true centre."""
+    _assert_centroids_within_10_px(_replayed(runs, "nominal-run00881"))
 
 
 def test_late_corner_run_73_images_once_the_slew_onto_the_target_is_done(runs: dict[str, Future[Outcome]]) -> None:

@@ -156,6 +156,27 @@ def test_a_cut_beyond_the_body_is_moved_to_the_limb_found_at_the_predicted_place
         assert moved is not None and math.dist(moved.centroid_col_row, truth) <= 3.0, (k, moved, truth)
 
 
+def test_a_cut_off_the_place_is_moved_to_the_limb_found_on_it_however_near_the_two_are() -> None:
+    """On the same transit frames, a cut whose centroid lies just beyond the place's allowance (its uncertainty and
+    the centroid noise) on the far side of the body's centre, so within half a radius of the body's limb circle, is
+    reported within 3 px of the centre: the circle is on the place, the cut is not (run 881 of the nominal campaign:
+    a cut 7.5 px from a place known to 4 px, 11.1 px off the centre, was kept)."""
+    cases = _transits()
+    for k, (scene, prediction, frame, det) in enumerate(cases):
+        dim, truth = det.dimorphos, frame.truth[1].centre_512
+        binned = ((frame.pixels.reshape(512, 2, 512, 2).astype(np.int64).sum(axis=(1, 3)) + 2) >> 2)
+        place = prediction.dimorphos_col_row
+        away = np.subtract(truth, place)
+        if np.hypot(*away) < 0.5:  # the place on the centre: away from it towards Didymos
+            away = np.subtract(frame.truth[0].centre_512, truth)
+        cut = tuple(np.add(place, (prediction.dimorphos_uncertainty_px + CFG.centroid_noise_px + 0.1)
+                           * away / np.hypot(*away)))
+        assert math.dist(cut, truth) < 0.5 * prediction.dimorphos_radius_px
+        wrong = dim._replace(centroid_col_row=cut, region_centroid_col_row=cut)
+        moved, _ = limb_corrected(wrong, binned, prediction, CFG, 2.9)
+        assert moved is not None and math.dist(moved.centroid_col_row, truth) <= 3.0, (k, moved, truth)
+
+
 def test_a_cut_off_its_body_is_moved_to_the_limb_up_to_70_deg_of_phase() -> None:
     """On transit frames of the independent generator at 60-70 deg of phase (the terminator anywhere, towards Didymos
     too: run 432 of the Monte Carlo campaigns, 63 deg), a cut one radius off Dimorphos's centre towards Didymos is
