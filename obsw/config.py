@@ -532,9 +532,10 @@ class ImagingConfig(Config):
         0.5,
         ge=0,
         description="the limb's centre replaces the cut's phase-corrected centroid only when they are more than this "
-        "many predicted radii apart: a cut holding the body's surface alone lies nearer, and is then the better of "
-        "the two (the nominal flyby: the cut within 1 px of the centre, the limb up to 0.35 radii off, the body "
-        "not a sphere), one holding Didymos's limb or the plume's core does not (the Monte Carlo cases: 0.8-1.3 "
+        "many predicted radii apart, or the centroid is off the predicted place (by more than its uncertainty and "
+        "centroid_noise_px) and the circle on it: a cut holding the body's surface alone lies nearer, and is then the "
+        "better of the two (the nominal flyby: the cut within 1 px of the centre, the limb up to 0.35 radii off, the "
+        "body not a sphere), one holding Didymos's limb or the plume's core does not (the Monte Carlo cases: 0.8-1.3 "
         "radii)",
     )
     limb_fit_max_search_px: float = Field(
