@@ -480,14 +480,14 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     however bright (a star: ``_point_source``); when it need not be, with Dimorphos's place known, the most likely
     (``_point_likelihood``), an extended one first when Didymos may be resolved; without sizes, the largest. With
     the probability that it is Didymos when it was chosen among point sources that way (``_likeliest``, against the
-    frame's ``stars`` when given), else 1; a lone point source near the place gets its probability against the stars
-    too."""
+    frame's ``stars``), else 1; a lone point source near the place gets its probability against the stars too.
+    ``stars`` is given exactly when Didymos need not be resolved and the place is known (``_choose_didymos``)."""
     if exp is None or regions is None:
         return _largest(blobs), 1.0
     n = round(exp.didymos_area)
     lights = apertures_dn8(regions, blobs, n)
     resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
-    if place is not None and (_placed(blobs, exp, regions, cfg, place) or (stars is not None and not resolved)):
+    if place is not None and stars is not None:
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
         return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg, stars)
     best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
@@ -502,8 +502,8 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
 
 def _placed(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
             place: _Place | None) -> bool:
-    """Whether ``_best_didymos`` chooses among ``blobs`` by their distance from Dimorphos's place (``_likeliest``):
-    Didymos need not be resolved, the place is known, and there is a choice."""
+    """Whether ``_best_didymos`` chooses among ``blobs`` by their distance from Dimorphos's place (``_likeliest``)
+    and there is a choice: Didymos need not be resolved, the place is known, and more than one blob."""
     return place is not None and exp is not None and regions is not None and len(blobs) > 1 \
         and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
 
