@@ -756,6 +756,32 @@ def test_a_star_near_the_place_of_a_point_like_dimorphos_is_not_reported_when_di
     assert t.detections.dimorphos is None or t.dimorphos.truth_index == 1, t.dimorphos
 
 
+AT_90_PERCENT = CFG.model_copy(update={"didymos_min_report_probability": 0.9, "dimorphos_min_report_probability": 0.9})
+
+
+@pytest.mark.parametrize(("seed", "k", "index"), [(1, 54, 0), (1, 225, 0), (3, 148, 0), (4, 190, 1), (5, 140, 1),
+                                                  (33, 258, 1), (35, 211, 1), (38, 179, 1), (39, 14, 0)])
+def test_a_point_source_less_than_95_percent_likely_to_be_the_body_is_not_reported(seed: int, k: int,
+                                                                                   index: int) -> None:
+    """A body under 3 px across (0.6-2.3 px), its place known to 90 px, and a star or a speck of noise taken for it
+    with a probability of 0.90-0.95: the body is reported unseen or within the paper's 15 px of its centre (bench
+    frames whose report at 0.9 lay 16-120 px off, seeds 35-39 among them, which no change was tuned on)."""
+    scene, prediction = _bench_scene(seed, k)
+    frame = render(scene, np.random.default_rng(k))
+    bad = ground_map(scene)
+
+    def error_px(cfg: ImagingConfig) -> float | None:
+        det = process_frame(frame.pixels, cfg, bad_pixels=bad, prediction=prediction)
+        body = (det.didymos, det.dimorphos)[index]
+        return None if body is None else math.dist(body.centroid_col_row, frame.truth[index].centre_512)
+
+    assert frame.truth[index].diameter_512_px < 3.0
+    error = error_px(CFG)
+    assert error is None or error <= PAPER_LIMIT_PX, error
+    before = error_px(AT_90_PERCENT)
+    assert before is not None and before > PAPER_LIMIT_PX  # the frame holds the case: at 0.9 the report is off
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_a_point_like_didymos_no_likelier_than_a_star_is_not_reported(seed: int) -> None:
     """Didymos 1 px across and faint (a point source binned), two 3000 DN stars the same distance from Dimorphos's
