@@ -541,6 +541,16 @@ class ImagingConfig(Config):
         "body not a sphere), one holding Didymos's limb or the plume's core does not (the Monte Carlo cases: 0.8-1.3 "
         "radii)",
     )
+    lit_limb_min_disagreement_radii: float = Field(
+        1.0,
+        ge=0,
+        description="where the whole limb is not fitted (beyond limb_fit_max_phase_deg, or a place too loose for "
+        "limb_fit_max_search_px), the centre of the circle whose sunward half steps down outward most, the lit "
+        "limb, replaces the cut's phase-corrected centroid when they are more than this many predicted radii apart: "
+        "a thin crescent's circle sits up to 0.4 of its radius sunward of the centre (it hugs the limb's best-lit "
+        "middle), a cut of the root of a fan of ejecta beside it 1.3-2 radii off (bench/imaging.py seeds 31, 35, 37 "
+        "at 101-118 deg: 20-25 px off, the circle 4-7 px)",
+    )
     limb_fit_max_search_px: float = Field(
         24.0,
         gt=0,

@@ -23,18 +23,29 @@ the worst-early-far flyby at 86 deg of phase.
 radius, or lies off the predicted place while the circle is on it: for a cut of the surface alone the centroid is the
 better of the two (the circle sits up to a third of a radius off a body that is not a sphere), and it lies where the
 place is.
+
+Where the whole limb is not fitted, beyond that phase or with a place known too loosely to search about it (the
+prediction before the trajectory is recognised), ``lit_limb_centre`` fits the lit half of the limb alone: the circle
+whose half towards the Sun steps down outward most (the median of minus the radial derivative). However thin a
+crescent, its lit limb is a sharp step from the surface to what lies beyond, the terminator on its other side steps
+the other way, and a fan of ejecta rising from the body fades smoothly: at 101-118 deg of phase, where a cut of the
+fan's bright root beside the crescent lay 20-25 px off Dimorphos's centre (bench/imaging.py seeds 31, 35 and 37),
+the circle's centre lies 4-7 px off. It is searched about the cut and taken only where it is more than
+``lit_limb_min_disagreement_radii`` off it: a circle smaller than the body hugs the middle of its lit limb, sunward
+of its centre.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from obsw.config import ImagingConfig
-from obsw.imaging_geometry import FramePrediction, focal_length_px, phase_angle_deg
+from obsw.imaging_geometry import FramePrediction, focal_length_px, phase_angle_deg, phase_offset_px
 from obsw.imaging_identification import Blob
 
 
@@ -53,13 +64,18 @@ class LimbFit:
 # the search's passes: (half-width of the grid around the best circle so far, px, or None for the whole search;
 # grid step, px; samples per circle): the fine pass covers the coarse one's step around its best circle
 _PASSES: tuple[tuple[float | None, float, int], ...] = ((None, 1.0, 48), (1.0, 0.25, 48))
+# the lit limb's: coarser first (its search spans the body's size about a cut, not a precise place), 24 samples on
+# the half of the circle within _LIT_ARC_HALF_DEG of the Sun's direction (its ends, the horns, fade)
+_LIT_PASSES: tuple[tuple[float | None, float, int], ...] = ((None, 2.0, 24), (2.0, 0.5, 24))
+_LIT_ARC_HALF_DEG = 80.0
 
 
 @njit(cache=True, nogil=True)
 def _scores(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray,
-            cos_a: np.ndarray, sin_a: np.ndarray) -> np.ndarray:
-    """Median over the circle of |radial derivative| (bilinear samples of gx, gy) for each centre (cols[i],
-    rows[j]) and radius radii[k]; a sample outside the arrays counts as no step."""
+            cos_a: np.ndarray, sin_a: np.ndarray, inward: bool) -> np.ndarray:
+    """Median over the circle's points at the angles (cos_a, sin_a) of |radial derivative| (bilinear samples of gx,
+    gy), or with ``inward`` of the step down outward (minus the radial derivative: the inside brighter), for each
+    centre (cols[i], rows[j]) and radius radii[k]; a sample outside the arrays counts as no step."""
     h, w = gx.shape
     n = cos_a.size
     out = np.zeros((cols.size, rows.size, radii.size))
@@ -83,16 +99,16 @@ def _scores(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, 
                     w11 = fx * fy
                     vx = w00 * gx[y0, x0] + w01 * gx[y0, x0 + 1] + w10 * gx[y0 + 1, x0] + w11 * gx[y0 + 1, x0 + 1]
                     vy = w00 * gy[y0, x0] + w01 * gy[y0, x0 + 1] + w10 * gy[y0 + 1, x0] + w11 * gy[y0 + 1, x0 + 1]
-                    buf[a] = abs(vx * cos_a[a] + vy * sin_a[a])
+                    radial = vx * cos_a[a] + vy * sin_a[a]
+                    buf[a] = -radial if inward else abs(radial)
                 out[i, j, k] = np.median(buf)
     return out
 
 
-def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray, samples: int
-          ) -> tuple[float, float, float, float]:
-    """The best circle of the grid (centre col, row, radius) and its score, ``samples`` points on each circle."""
-    ang = np.linspace(0.0, 2.0 * np.pi, samples, endpoint=False)
-    s = _scores(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang))
+def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray, ang: np.ndarray,
+          inward: bool) -> tuple[float, float, float, float]:
+    """The best circle of the grid (centre col, row, radius) and its score, sampled at the angles ``ang``."""
+    s = _scores(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang), inward)
     i, j, k = np.unravel_index(int(np.argmax(s)), s.shape)
     return float(cols[i]), float(rows[j]), float(radii[k]), float(s[i, j, k])
 
@@ -101,7 +117,7 @@ def warm_up() -> None:
     """Compile (or load from the cache) the circle scores now, for the image types the chain gives."""
     g = np.zeros((4, 4))
     one = np.zeros(1)
-    _scores(g, g, one, one, one + 1.0, one + 1.0, one)
+    _scores(g, g, one, one, one + 1.0, one + 1.0, one, False)
 
 
 def limb_centre(image: np.ndarray, place_col_row: tuple[float, float], search_px: float, radius_min_px: float,
@@ -109,29 +125,54 @@ def limb_centre(image: np.ndarray, place_col_row: tuple[float, float], search_px
     """The circle of radius in [radius_min_px, radius_max_px], centred in the square of half-width ``search_px``
     about ``place_col_row``, along which ``image`` (2-D, any numeric type) steps most (module docstring); None when
     the search window leaves the image or the radii are not positive and ordered."""
+    return _fit(image, place_col_row, search_px, radius_min_px, radius_max_px, _PASSES,
+                lambda n: np.linspace(0.0, 2.0 * np.pi, n, endpoint=False), inward=False)
+
+
+def lit_limb_centre(image: np.ndarray, near_col_row: tuple[float, float], search_px: float, radius_min_px: float,
+                    radius_max_px: float, sun_col_row: tuple[float, float]) -> LimbFit | None:
+    """The circle of radius in [radius_min_px, radius_max_px], centred in the square of half-width ``search_px``
+    about ``near_col_row``, whose half towards the Sun's direction in the image ``sun_col_row`` (not nil) steps
+    down outward most: the lit limb, a sharp step from the surface to what lies beyond, however thin the crescent
+    (module docstring); None as for ``limb_centre``."""
+    if not math.hypot(*sun_col_row) > 0.0:
+        return None
+    towards = math.atan2(sun_col_row[1], sun_col_row[0])
+    return _fit(image, near_col_row, search_px, radius_min_px, radius_max_px, _LIT_PASSES,
+                lambda n: towards + np.radians(np.linspace(-_LIT_ARC_HALF_DEG, _LIT_ARC_HALF_DEG, n)), inward=True)
+
+
+def _fit(image: np.ndarray, centre_col_row: tuple[float, float], search_px: float, radius_min_px: float,
+         radius_max_px: float, passes: tuple[tuple[float | None, float, int], ...], angles: Callable[[int], np.ndarray],
+         inward: bool) -> LimbFit | None:
+    """The best circle of the grid search ``passes`` (``_PASSES``) about ``centre_col_row``, sampled at
+    ``angles(n)`` (``_scores``); None when the search window leaves the image or the radii are not positive and
+    ordered."""
     if not (0.0 < radius_min_px <= radius_max_px and search_px >= 0.0):
         return None
-    if not all(math.isfinite(v) for v in (*place_col_row, search_px, radius_min_px, radius_max_px)):
+    if not all(math.isfinite(v) for v in (*centre_col_row, search_px, radius_min_px, radius_max_px)):
         return None
     h, w = image.shape
     reach = search_px + radius_max_px + 2.0
-    left, top = int(math.floor(place_col_row[0] - reach)), int(math.floor(place_col_row[1] - reach))
-    right, bottom = int(math.ceil(place_col_row[0] + reach)) + 1, int(math.ceil(place_col_row[1] + reach)) + 1
+    left, top = int(math.floor(centre_col_row[0] - reach)), int(math.floor(centre_col_row[1] - reach))
+    right, bottom = int(math.ceil(centre_col_row[0] + reach)) + 1, int(math.ceil(centre_col_row[1] + reach)) + 1
     left, top, right, bottom = max(left, 0), max(top, 0), min(right, w), min(bottom, h)
     if right - left < 3 or bottom - top < 3:
         return None
     crop = np.asarray(image[top:bottom, left:right], dtype=np.float64)
     gy, gx = np.gradient(crop)
-    c, r = place_col_row[0] - left, place_col_row[1] - top
-    span = float(math.ceil(search_px))
-    offsets = np.arange(-span, span + 1e-9, 1.0)
-    radii = np.arange(radius_min_px, radius_max_px + 1.0 - 1e-9, 1.0)
+    c, r = centre_col_row[0] - left, centre_col_row[1] - top
+    _, first_step, _ = passes[0]
+    span = first_step * math.ceil(search_px / first_step)
+    offsets = np.arange(-span, span + 1e-9, first_step)
+    radii = np.arange(radius_min_px, radius_max_px + first_step - 1e-9, first_step)
     count = 0
-    for half, step, n_samples in _PASSES:
+    for half, step, n_samples in passes:
         if half is not None:  # a finer grid around the best circle so far
             offsets = np.arange(-half, half + 1e-9, step)
             radii = np.unique(np.clip(rad + offsets, radius_min_px, radius_max_px))
-        c, r, rad, score = _best(gx, gy, c + offsets, r + offsets, np.minimum(radii, radius_max_px), n_samples)
+        c, r, rad, score = _best(gx, gy, c + offsets, r + offsets, np.minimum(radii, radius_max_px),
+                                 angles(n_samples), inward)
         count += offsets.size ** 2 * radii.size * n_samples
     window = float(np.median(np.hypot(gx, gy)))
     return LimbFit(col_row=(c + left, r + top), radius_px=rad, score=score, window_median=window, samples=count)
@@ -148,7 +189,8 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     (``limb_fit_min_radius_px``), lit at a low enough phase (``limb_fit_max_phase_deg``), and the limb found steps
     clearly (``limb_fit_min_contrast``) and gives a centre within the prediction's uncertainty and the centroid noise
     of its place; the circle's centre also replaces a centroid nearer than that when the centroid is off the place by
-    more than the same allowance; the blob unchanged otherwise. With it,
+    more than the same allowance; beyond that phase or search, the lit limb's circle (``_lit_limb_corrected``); the
+    blob unchanged otherwise. With it,
     the gradient samples the fit took (0 when not fitted), its cost on the FPGA (``obsw.timing``)."""
     if blob is None or not blob.trimmed_from or not cfg.limb_fit or prediction is None \
             or prediction.dimorphos_col_row is None or prediction.dimorphos_radius_px is None \
@@ -160,12 +202,11 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
         return blob, 0
     n = cfg.binned_size_px
     place = prediction.dimorphos_col_row
-    if phase_angle_deg(prediction.sun_camera, place, fov_deg, n) > cfg.limb_fit_max_phase_deg:
-        return blob, 0
     search = prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px \
         + focal_length_px(fov_deg, n) * math.tan(math.radians(cfg.limb_fit_pointing_margin_deg))
-    if search > cfg.limb_fit_max_search_px:
-        return blob, 0
+    if phase_angle_deg(prediction.sun_camera, place, fov_deg, n) > cfg.limb_fit_max_phase_deg \
+            or search > cfg.limb_fit_max_search_px:
+        return _lit_limb_corrected(blob, image, prediction, cfg, fov_deg, r_min, r_max)
     fit = limb_centre(image, place, search, r_min, r_max)
     if fit is None:
         return blob, 0
@@ -183,3 +224,27 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     if math.dist(centre, blob.centroid_col_row) <= near and math.dist(blob.centroid_col_row, place) <= allowed:
         return blob, fit.samples
     return blob._replace(centroid_col_row=centre), fit.samples
+
+
+def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePrediction, cfg: ImagingConfig,
+                        fov_deg: float, r_min: float, r_max: float) -> tuple[Blob, int]:
+    """``limb_corrected`` where the whole limb is not fitted (a phase beyond ``limb_fit_max_phase_deg``, or a place
+    too loose to search): the centre of the lit limb (``lit_limb_centre``), searched within twice the largest radius
+    of the cut, replaces the cut's centroid when it steps clearly, lies where the prediction allows, and is more than
+    ``lit_limb_min_disagreement_radii`` predicted radii off the cut; with the samples the fit took."""
+    assert prediction.dimorphos_col_row is not None and prediction.dimorphos_radius_px is not None
+    assert prediction.dimorphos_uncertainty_px is not None
+    n = cfg.binned_size_px
+    sun = phase_offset_px(prediction.sun_camera, blob.region_centroid_col_row, 1.0, fov_deg, n)
+    fit = lit_limb_centre(image, blob.region_centroid_col_row, 2.0 * r_max, r_min, r_max, sun)
+    if fit is None:
+        return blob, 0
+    if fit.score < cfg.limb_fit_min_contrast * fit.window_median:
+        return blob, fit.samples
+    if math.dist(fit.col_row, prediction.dimorphos_col_row) > prediction.dimorphos_uncertainty_px \
+            + cfg.centroid_noise_px:
+        return blob, fit.samples
+    if math.dist(fit.col_row, blob.centroid_col_row) <= cfg.lit_limb_min_disagreement_radii \
+            * prediction.dimorphos_radius_px:
+        return blob, fit.samples
+    return blob._replace(centroid_col_row=fit.col_row), fit.samples
