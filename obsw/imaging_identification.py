@@ -1076,19 +1076,25 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             and 2.0 * place.radius_px < exp.orbit_radius_max:
         # Dimorphos merged with Didymos's region by ejecta brighter than its surface: the trajectory bounds where
         # it is (well within the orbit), so the part of that region there, cut to its brightest pixels of
-        # Dimorphos's size and off Didymos's disc, is Dimorphos
+        # Dimorphos's size and off Didymos's disc, is Dimorphos. When that cut lies on Didymos's disc, the part
+        # within the place's disc stopped at Didymos's limb: beside it Didymos's lit limb is brighter than a small
+        # Dimorphos blurred
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
-        pieces = [p for p in regions.within(root, place.col_row, place.radius_px, next_label)
-                  if p.area_px >= cfg.min_body_area_px]
-        next_label = regions.free_label(next_label)
-        if pieces:
+        c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
+        centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
+        off_didymos = min(place.radius_px, _distance(place.col_row, centre) - exp.didymos_radius)
+        for reach in dict.fromkeys((place.radius_px, off_didymos)):
+            pieces = [p for p in regions.within(root, place.col_row, reach, next_label)
+                      if p.area_px >= cfg.min_body_area_px] if reach > 0.0 else []
+            next_label = regions.free_label(next_label)
+            if not pieces:
+                continue
             piece = trimmed(regions, max(pieces, key=lambda b: (b.area_px, -b.label)), round(exp.dimorphos_area),
                             next_label, place, cfg)
             next_label = regions.free_label(next_label)
-            c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
-            centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
             if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions, probability)
+                break
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken

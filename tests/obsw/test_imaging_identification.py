@@ -90,6 +90,14 @@ def test_dimorphos_in_the_plume_is_not_a_star_in_the_dust(seed: int, k: int) -> 
     _assert_found(_bench_trial(seed, k), 1)
 
 
+@pytest.mark.parametrize(("seed", "k"), [(36, 76), (37, 86)])
+def test_a_small_dimorphos_joined_to_didymos_by_the_glow_is_cut_off_its_disc(seed: int, k: int) -> None:
+    """Dimorphos 4-5 px across, a few px off Didymos's limb and joined to it by the plume's glow, its place known to
+    9 px: the part of the region cut for it stops at Didymos's limb, and Dimorphos is found (bench frames of seeds
+    36 and 37, unseen before, that reported none: within the place's disc Didymos's lit limb was the brightest)."""
+    _assert_found(_bench_trial(seed, k), 1)
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_a_star_in_a_dense_fan_does_not_take_dimorphos_place(seed: int) -> None:
     """A fan from Dimorphos half as bright as its surface with a 3000 DN star in it, three Dimorphos radii out:
