@@ -463,9 +463,14 @@ def _piece_of_crescent(blob: Blob, didymos: Blob, exp: Expected | None, cfg: Ima
         return False
     if exp is None:
         return True
+    return _distance(blob.region_centroid_col_row, _didymos_centre(didymos, exp)) <= exp.didymos_radius_max
+
+
+def _didymos_centre(didymos: Blob, exp: Expected) -> tuple[float, float]:
+    """Didymos's centre: its region centroid moved back from the lit part by the phase offset of its expected
+    radius."""
     c, shift, r = didymos.region_centroid_col_row, exp.lit_shift_per_radius, exp.didymos_radius
-    centre = (c[0] - shift[0] * r, c[1] - shift[1] * r)
-    return _distance(blob.region_centroid_col_row, centre) <= exp.didymos_radius_max
+    return (c[0] - shift[0] * r, c[1] - shift[1] * r)
 
 
 def _largest(blobs: list[Blob]) -> Blob:
@@ -1080,8 +1085,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         # within the place's disc stopped at Didymos's limb: beside it Didymos's lit limb is brighter than a small
         # Dimorphos blurred
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
-        c, shift = didymos.region_centroid_col_row, exp.lit_shift_per_radius
-        centre = (c[0] - shift[0] * exp.didymos_radius, c[1] - shift[1] * exp.didymos_radius)
+        centre = _didymos_centre(didymos, exp)
         off_didymos = min(place.radius_px, _distance(place.col_row, centre) - exp.didymos_radius)
         for reach in dict.fromkeys((place.radius_px, off_didymos)):
             pieces = [p for p in regions.within(root, place.col_row, reach, next_label)

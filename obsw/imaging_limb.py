@@ -202,18 +202,17 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
         return blob, 0
     n = cfg.binned_size_px
     place = prediction.dimorphos_col_row
-    search = prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px \
-        + focal_length_px(fov_deg, n) * math.tan(math.radians(cfg.limb_fit_pointing_margin_deg))
+    allowed = prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px
+    search = allowed + focal_length_px(fov_deg, n) * math.tan(math.radians(cfg.limb_fit_pointing_margin_deg))
     if phase_angle_deg(prediction.sun_camera, place, fov_deg, n) > cfg.limb_fit_max_phase_deg \
             or search > cfg.limb_fit_max_search_px:
-        return _lit_limb_corrected(blob, image, prediction, cfg, fov_deg, r_min, r_max)
+        return _lit_limb_corrected(blob, image, prediction, cfg, fov_deg, (r_min, r_max), allowed)
     fit = limb_centre(image, place, search, r_min, r_max)
     if fit is None:
         return blob, 0
     if fit.score < cfg.limb_fit_min_contrast * fit.window_median:
         return blob, fit.samples
     centre = fit.col_row  # the body's own: its outline steps all round (module docstring), no phase correction
-    allowed = prediction.dimorphos_uncertainty_px + cfg.centroid_noise_px
     # it must be where the prediction puts Dimorphos: a circle near the cut but off the place is another body's limb
     # or the plume's edge (the nominal flyby at C/A+3 s: 12.6 px from a place known to 5.2 px, 13 px off)
     if math.dist(centre, place) > allowed:
@@ -227,24 +226,22 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
 
 
 def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePrediction, cfg: ImagingConfig,
-                        fov_deg: float, r_min: float, r_max: float) -> tuple[Blob, int]:
+                        fov_deg: float, radii: tuple[float, float], allowed: float) -> tuple[Blob, int]:
     """``limb_corrected`` where the whole limb is not fitted (a phase beyond ``limb_fit_max_phase_deg``, or a place
-    too loose to search): the centre of the lit limb (``lit_limb_centre``), searched within twice the largest radius
-    of the cut, replaces the cut's centroid when it steps clearly, lies where the prediction allows, and is more than
-    ``lit_limb_min_disagreement_radii`` predicted radii off the cut; with the samples the fit took."""
+    too loose to search): the centre of the lit limb (``lit_limb_centre``) of a radius within ``radii``, searched
+    within twice the largest about the cut, replaces the cut's centroid when it steps clearly, lies within
+    ``allowed`` of the place, and is more than ``lit_limb_min_disagreement_radii`` predicted radii off the cut; with
+    the samples the fit took."""
     assert prediction.dimorphos_col_row is not None and prediction.dimorphos_radius_px is not None
-    assert prediction.dimorphos_uncertainty_px is not None
-    n = cfg.binned_size_px
-    sun = phase_offset_px(prediction.sun_camera, blob.region_centroid_col_row, 1.0, fov_deg, n)
+    r_min, r_max = radii
+    # only the direction of the lit centroid's offset counts: the Sun's in the image
+    sun = phase_offset_px(prediction.sun_camera, blob.region_centroid_col_row, 1.0, fov_deg, cfg.binned_size_px)
     fit = lit_limb_centre(image, blob.region_centroid_col_row, 2.0 * r_max, r_min, r_max, sun)
     if fit is None:
         return blob, 0
-    if fit.score < cfg.limb_fit_min_contrast * fit.window_median:
-        return blob, fit.samples
-    if math.dist(fit.col_row, prediction.dimorphos_col_row) > prediction.dimorphos_uncertainty_px \
-            + cfg.centroid_noise_px:
-        return blob, fit.samples
-    if math.dist(fit.col_row, blob.centroid_col_row) <= cfg.lit_limb_min_disagreement_radii \
+    if fit.score < cfg.limb_fit_min_contrast * fit.window_median \
+            or math.dist(fit.col_row, prediction.dimorphos_col_row) > allowed \
+            or math.dist(fit.col_row, blob.centroid_col_row) <= cfg.lit_limb_min_disagreement_radii \
             * prediction.dimorphos_radius_px:
         return blob, fit.samples
     return blob._replace(centroid_col_row=fit.col_row), fit.samples

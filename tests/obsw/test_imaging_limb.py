@@ -252,12 +252,13 @@ def _lit_sphere(size: int, col: float, row: float, radius: float, sun: np.ndarra
 
 
 @settings(max_examples=25, deadline=None)
-@given(radius=st.floats(7.0, 18.0), phase=st.floats(95.0, 130.0), sun_az=st.floats(0.0, 2.0 * math.pi),
+@given(radius=st.floats(1.5 * CFG.limb_fit_min_radius_px, 18.0), phase=st.floats(95.0, 130.0), sun_az=st.floats(0.0, 2.0 * math.pi),
        fan_turn=st.floats(math.radians(60.0), math.radians(300.0)), fan=st.floats(0.2, 0.7),
        psf=st.floats(0.5, 1.0))
 def test_the_lit_limb_of_a_crescent_beside_a_fan_of_ejecta_is_found(radius: float, phase: float, sun_az: float,
                                                                    fan_turn: float, fan: float, psf: float) -> None:
-    """A Lambert sphere at 95-130 deg of phase (a thin crescent) with a fan of ejecta rising from it (a 30 deg wedge,
+    """A Lambert sphere of 9-18 px radius (the fit runs only where the smallest radius searched, here R / 1.5, is at
+    least limb_fit_min_radius_px: at 7 px a bright fan drew it 10 px off) at 95-130 deg of phase (a thin crescent) with a fan of ejecta rising from it (a 30 deg wedge,
     as bright as 0.2-0.7 of the surface's best-lit point at its root, fading as 1 / distance, turned 60-300 deg from
     the Sun), searched from the fan's brightest part: the lit limb's circle has its centre on the body, within the
     radii searched (R - R / 1.5) plus a pixel of its centre: the circle hugs the limb's middle, never the fan."""
