@@ -359,6 +359,20 @@ class ImagingConfig(Config):
         "give 0.044; margin for phase, a Didymos partly out of the frame and plume dust merged with Dimorphos; "
         "two pieces of Didymos's thin crescent after C/A are 0.4 or more: 0.3, from the five closed-loop flybys)",
     )
+    deblend_levels: int = Field(
+        32,
+        ge=2,
+        description="levels (8-bit, evenly spaced from the threshold to the peak) at which Didymos's region is split "
+        "when Dimorphos was not found in it: SExtractor's DEBLEND_NTHRESH default (Bertin & Arnouts 1996, A&AS 117, "
+        "393; obsw/imaging_identification.py, Regions.deblended)",
+    )
+    deblend_min_flux_fraction: float = Field(
+        0.005,
+        gt=0,
+        lt=1,
+        description="least share of a region's light (linear, above the threshold) a part must hold to be an object of "
+        "its own when the region is deblended: SExtractor's DEBLEND_MINCONT default (Bertin & Arnouts 1996)",
+    )
     dimorphos_min_peak_fraction: float = Field(
         0.3,
         ge=0,

@@ -147,7 +147,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     regions = Regions(components, values8, n, thr.threshold_dn8, linear8=linear_values(cfg, camera.bit_depth))
     # a region smaller than a body (noise, a defect the filter left) is counted, not described
     blobs = regions.blobs(min_area_px=cfg.min_body_area_px)
-    didymos, dimorphos, probability = identify(blobs, cfg, previous, prediction, regions)
+    didymos, dimorphos, probability, deblended = identify(blobs, cfg, previous, prediction, regions)
     pair: tuple[Blob, Blob] | None = None
     age = 0
     if didymos is not None and dimorphos is not None:
@@ -158,8 +158,10 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     r_did = None if prediction is None else prediction.didymos_radius_px
     r_dim = None if prediction is None else prediction.dimorphos_radius_px
     didymos = phase_corrected(didymos, r_did, prediction, cfg, camera.fov_deg)
-    dimorphos, limb_samples = limb_corrected(phase_corrected(dimorphos, r_dim, prediction, cfg, camera.fov_deg),
-                                             image.binned, prediction, cfg, camera.fov_deg)
+    dimorphos = phase_corrected(dimorphos, r_dim, prediction, cfg, camera.fov_deg)
+    limb_samples = 0
+    if not deblended:  # a deblended object is a peak of its own, not a cut beside the body: no limb sought for it
+        dimorphos, limb_samples = limb_corrected(dimorphos, image.binned, prediction, cfg, camera.fov_deg)
     if pair is not None and age == 0:
         pair = (didymos, dimorphos)  # type: ignore[assignment]
     if probability < cfg.didymos_min_report_probability:

@@ -52,6 +52,13 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
+  When still none is and Didymos was cut out of a larger region, that region is deblended (``Regions.deblended``,
+  SExtractor's multi-threshold deblending: at ``deblend_levels`` levels from the threshold to the peak, the parts
+  that split from one another, each holding at least ``deblend_min_flux_fraction`` of the region's light), and its
+  objects no smaller than Dimorphos can be nor larger, off Didymos's disc and where its lit part is expected, are
+  candidates among the others (``_deblended_dimorphos``): Dimorphos joined to Didymos by the plume or the blur below
+  every level the cuts tried keeps its own peak. Such an object is no cut beside the body: its limb is not sought
+  (``Identification.dimorphos_deblended``).
   A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
   fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
   that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
@@ -201,6 +208,58 @@ class Regions:
             return []
         disc = (float(centre_col_row[0]), float(centre_col_row[1]), float(radius_px))
         return self._cut(blob, sel[inside], self.threshold_dn8, first_label, disc)
+
+    def deblended(self, blob: Blob, levels: int, min_flux_fraction: float, first_label: int) -> list[Blob]:
+        """The objects a blob's light holds (SExtractor's multi-threshold deblending, Bertin & Arnouts 1996): its
+        pixels at each of ``levels`` 8-bit levels evenly spaced from the threshold to its peak, split into 8-connected
+        parts; where two or more parts of one branch each hold at least ``min_flux_fraction`` of the blob's light
+        (linear, above the threshold), each is a branch of its own. The branches that part no further, each at the
+        lowest level where it stands alone (its widest outline), in raster order of their first pixel; the blob
+        alone when nothing parts."""
+        assert self.linear8 is not None
+        sel = self.pixels_of(blob)
+        vals = self.values8[sel]
+        light = self.linear8[vals] - self.linear8[self.threshold_dn8]
+        total = float(light.sum())
+        peak = int(vals.max())
+        if total <= 0.0 or peak <= self.threshold_dn8 + 1:
+            return [blob]
+        owner = np.full(sel.size, -1, dtype=np.int64)  # the branch holding each pixel (-1: the blob's trunk)
+        branches: list[tuple[np.ndarray, int, int]] = []  # each branch's positions in ``sel``, level, pixels there
+        parted: set[int] = set()  # branches that split into branches of their own
+        for level in np.unique(np.linspace(self.threshold_dn8 + 1, peak, levels).round().astype(np.int64)).tolist():
+            at = np.flatnonzero(vals >= level)
+            rows, cols = np.divmod(self.components.pixel_index[sel[at]], self.width)
+            left, top = int(cols.min()), int(rows.min())
+            crop = np.zeros((int(rows.max()) - top + 1, int(cols.max()) - left + 1), dtype=bool)
+            crop[rows - top, cols - left] = True
+            sub = connected_components(crop)
+            if sub.area_px.size < 2:
+                continue
+            where = np.full(crop.shape, -1, dtype=np.int64)
+            where[rows - top, cols - left] = at
+            members = where.reshape(-1)[sub.pixel_index]
+            flux = np.bincount(sub.pixel_component, weights=light[members], minlength=sub.area_px.size)
+            by_parent: dict[int, list[np.ndarray]] = {}
+            for j in np.flatnonzero(flux >= min_flux_fraction * total).tolist():
+                mine = members[sub.pixel_component == j]
+                by_parent.setdefault(int(owner[mine[0]]), []).append(mine)  # a part lies in one branch below
+            for parent, children in by_parent.items():
+                if len(children) < 2:
+                    continue
+                parted.add(parent)
+                for mine in children:
+                    owner[mine] = len(branches)
+                    branches.append((mine, level, int(at.size)))
+        leaves = [b for i, b in enumerate(branches) if i not in parted]
+        if not leaves:
+            return [blob]
+        out: list[Blob] = []
+        for mine, level, n in sorted(leaves, key=lambda b: int(self.components.pixel_index[sel[b[0]]].min())):
+            # recorded as ``parts`` would cut it: the brightest n pixels are those at or above its level
+            first_label = self.free_label(first_label)
+            out.extend(self._cut(blob, sel[mine], level - 1, first_label, n))
+        return out
 
     def free_label(self, at_least: int) -> int:
         """The first label from ``at_least`` on past every part cut so far: a cut labelled from it takes no kept
@@ -985,6 +1044,7 @@ class Identification(NamedTuple):
     didymos: Blob | None
     dimorphos: Blob | None
     didymos_probability: float = 1.0
+    dimorphos_deblended: bool = False  # Dimorphos is an object of Didymos's region deblended (``Regions.deblended``)
 
 
 def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
@@ -1077,6 +1137,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
     if exp is not None:
         exp = _sized_by_didymos(exp, didymos, cfg)
     dimorphos = _choose_dimorphos(cands, didymos, exp, place, prev_did, prev_dim, cfg, regions, probability)
+    deblended = False
     if dimorphos is None and place is not None and exp is not None and regions is not None \
             and 2.0 * place.radius_px < exp.orbit_radius_max:
         # Dimorphos merged with Didymos's region by ejecta brighter than its surface: the trajectory bounds where
@@ -1099,12 +1160,47 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions, probability)
                 break
+    if dimorphos is None and place is not None and exp is not None and regions is not None \
+            and regions.linear8 is not None and didymos.trimmed_from:
+        # Dimorphos merged with Didymos's region by the plume or the blur, below every level the cuts above tried
+        root = next((b for b in blobs if b.label == didymos.trimmed_from), didymos)
+        dimorphos, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions, probability,
+                                                     next_label)
+        deblended = dimorphos is not None
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
     # after a cut was taken by its light among them all)
     same = (didymos.trimmed_from or didymos.label) == (taken.trimmed_from or taken.label)
-    return Identification(didymos, dimorphos, probability if same else 1.0)
+    return Identification(didymos, dimorphos, probability if same else 1.0, deblended)
+
+
+def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expected, place: _Place,
+                         cfg: ImagingConfig, regions: Regions, didymos_probability: float, next_label: int
+                         ) -> tuple[Blob | None, int]:
+    """Dimorphos among the objects of the region Didymos was cut out of (``Regions.deblended``), and the next free
+    label: its own peak parts from Didymos's at some level. Candidates are the objects no smaller than Dimorphos can
+    be (its expected area over the largest radius factor squared: the part of a Dimorphos in front of Didymos's limb
+    brighter than the limb parts from it too, its centroid off the body's) nor larger, off Didymos's disc and, cut to
+    their surface, where the lit part is expected (``_lit_agrees``: a piece of Didymos's limb or of the plume parts
+    from the rest too); chosen among the frame's other candidates, so that a point-like one is weighed against all
+    the frame's stars."""
+    centre = _didymos_centre(didymos, exp)
+    smallest = max(float(cfg.min_body_area_px), exp.dimorphos_area / exp.radius_factor_max ** 2)
+    next_label = regions.free_label(next_label)
+    objects = [o for o in regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label)
+               if smallest <= o.area_px <= exp.dimorphos_area_max
+               and _distance(o.region_centroid_col_row, centre) > exp.didymos_radius]
+    next_label = regions.free_label(next_label)
+    agree = []
+    for o in objects:
+        if _lit_agrees(_dimorphos_surface(regions, o, exp, next_label, place, cfg), place):
+            agree.append(o)
+        next_label = regions.free_label(next_label)
+    if not agree:
+        return None, next_label
+    return _choose_dimorphos(cands + agree, didymos, exp, place, None, None, cfg, regions,
+                             didymos_probability), next_label
 
 
 def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:

@@ -21,6 +21,8 @@ from obsw.imaging import Detections, FramePrediction, process_frame
 from obsw.imaging_limb import limb_centre, limb_corrected, lit_limb_centre
 
 CFG = ImagingConfig()
+# the chain's cuts the limb check judges: without deblending, whose objects are peaks of their own and not checked
+CUTS = CFG.model_copy(update={"deblend_min_flux_fraction": 0.999})
 
 
 def _disc(size: int, col: float, row: float, radius: float, sub: int = 5) -> np.ndarray:
@@ -109,7 +111,7 @@ def _transits(phase_deg: tuple[float, float] = (15.0, 40.0), seeds: int = 24, st
         scene = _transit(rng, plume=True, phase_deg=phase_deg)
         prediction = prediction_for(scene, rng, place_sigma_px=1.0)
         frame = render(scene, np.random.default_rng(seed))
-        det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
+        det = process_frame(frame.pixels, CUTS, bad_pixels=ground_map(scene), prediction=prediction)
         if det.dimorphos is not None and det.dimorphos.trimmed_from:
             out.append((scene, prediction, frame, det))
     return tuple(out)
