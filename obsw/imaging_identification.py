@@ -1199,8 +1199,9 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
         next_label = regions.free_label(next_label)
     if not agree:
         return None, next_label
-    return _choose_dimorphos(cands + agree, didymos, exp, place, None, None, cfg, regions,
-                             didymos_probability), next_label
+    chosen = _choose_dimorphos(cands + agree, didymos, exp, place, None, None, cfg, regions, didymos_probability)
+    # the others were just found wanting without the objects: only an object is taken here
+    return (chosen if any(chosen is o for o in agree) else None), next_label
 
 
 def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:
