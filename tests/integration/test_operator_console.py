@@ -24,8 +24,10 @@ def test_operator_console_on_a_live_run(tmp_path: Path) -> None:
                     "--timeout", "60", timeout=120)
         assert bad.returncode == 1, bad.stdout + bad.stderr
         assert "REFUSED" in bad.stdout and "mode" in bad.stdout
+        # watched for 20 s of the machine's time: the echo takes about 3 s of the run's, which lags under load (the full
+        # suite on two cores once ended an 8 s watch with the command completed and its mode event still on its way)
         good = flyby(*console, "--send", "set_mode", "mode=SAFE",
-                     "--watch", "--seconds", "8", "--timeout", "60", timeout=120)
+                     "--watch", "--seconds", "20", "--timeout", "60", timeout=120)
         assert good.returncode == 0, good.stdout + good.stderr
         assert "accepted: queued SetMode" in good.stdout
         # one light time (1 s) up, execution, one light time down: the event and the verification reach ground
