@@ -229,16 +229,9 @@ class Regions:
         parted: set[int] = set()  # branches that split into branches of their own
         for level in np.unique(np.linspace(self.threshold_dn8 + 1, peak, levels).round().astype(np.int64)).tolist():
             at = np.flatnonzero(vals >= level)
-            rows, cols = np.divmod(self.components.pixel_index[sel[at]], self.width)
-            left, top = int(cols.min()), int(rows.min())
-            crop = np.zeros((int(rows.max()) - top + 1, int(cols.max()) - left + 1), dtype=bool)
-            crop[rows - top, cols - left] = True
-            sub = connected_components(crop)
+            sub, members = self._connected(sel[at], at)[:2]  # members: each part's pixels as indices into ``sel``
             if sub.area_px.size < 2:
                 continue
-            where = np.full(crop.shape, -1, dtype=np.int64)
-            where[rows - top, cols - left] = at
-            members = where.reshape(-1)[sub.pixel_index]
             flux = np.bincount(sub.pixel_component, weights=light[members], minlength=sub.area_px.size)
             by_parent: dict[int, list[np.ndarray]] = {}
             for j in np.flatnonzero(flux >= min_flux_fraction * total).tolist():
@@ -266,20 +259,25 @@ class Regions:
         part's label (and with it the part's pixels)."""
         return max(at_least, max(self.part_pixels, default=0) + 1)
 
-    def _cut(self, blob: Blob, sel: np.ndarray, threshold_dn8: int, first_label: int,
-             cut: int | tuple[float, float, float]) -> list[Blob]:
-        """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order) of a blob,
-        labelled from ``first_label``, their pixels kept by label."""
-        pix = self.components.pixel_index[sel]
-        rows, cols = np.divmod(pix, self.width)
+    def _connected(self, sel: np.ndarray, tags: np.ndarray) -> tuple[Components, np.ndarray, int, int, int]:
+        """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order), labelled on
+        their bounding box: (the parts, each of their pixels' tag from ``tags``, aligned with ``sel``, the box's left
+        column, top row and width)."""
+        rows, cols = np.divmod(self.components.pixel_index[sel], self.width)
         left, top = int(cols.min()), int(rows.min())
         h, w = int(rows.max()) - top + 1, int(cols.max()) - left + 1
         crop = np.zeros((h, w), dtype=bool)
         crop[rows - top, cols - left] = True
-        position = np.full((h, w), -1, dtype=np.int64)
-        position[rows - top, cols - left] = sel
+        tagged = np.full((h, w), -1, dtype=np.int64)
+        tagged[rows - top, cols - left] = tags
         sub = connected_components(crop)
-        flat_pos = position.reshape(-1)[sub.pixel_index]
+        return sub, tagged.reshape(-1)[sub.pixel_index], left, top, w
+
+    def _cut(self, blob: Blob, sel: np.ndarray, threshold_dn8: int, first_label: int,
+             cut: int | tuple[float, float, float]) -> list[Blob]:
+        """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order) of a blob,
+        labelled from ``first_label``, their pixels kept by label."""
+        sub, flat_pos, left, top, w = self._connected(sel, sel)
         part = Regions(sub, self.values8[flat_pos], w, threshold_dn8)
         out = part.blobs(first_label, (left, top), blob.trimmed_from or blob.label, image_size=self.width,
                          cuts=blob.cuts + (cut,))
