@@ -70,61 +70,87 @@ _LIT_PASSES: tuple[tuple[float | None, float, int], ...] = ((None, 2.0, 24), (2.
 _LIT_ARC_HALF_DEG = 80.0
 
 
-@njit(cache=True, nogil=True)
-def _scores(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray,
-            cos_a: np.ndarray, sin_a: np.ndarray, inward: bool) -> np.ndarray:
-    """Median over the circle's points at the angles (cos_a, sin_a) of |radial derivative| (bilinear samples of gx,
-    gy), or with ``inward`` of the step down outward (minus the radial derivative: the inside brighter), for each
-    centre (cols[i], rows[j]) and radius radii[k]; a sample outside the arrays counts as no step."""
+@njit(cache=True, nogil=True, inline="always")
+def _sample(gx: np.ndarray, gy: np.ndarray, x: float, y: float, c: float, s: float, inward: bool) -> float:
+    """|radial derivative| (bilinear samples of gx, gy) at (x, y) along the direction (c, s), or with ``inward`` the
+    step down outward (minus the radial derivative); 0 (no step) outside the arrays."""
     h, w = gx.shape
+    x0 = int(math.floor(x))
+    y0 = int(math.floor(y))
+    if x0 < 0 or y0 < 0 or x0 + 1 >= w or y0 + 1 >= h:
+        return 0.0
+    fx = x - x0
+    fy = y - y0
+    w00 = (1 - fx) * (1 - fy)
+    w01 = fx * (1 - fy)
+    w10 = (1 - fx) * fy
+    w11 = fx * fy
+    vx = w00 * gx[y0, x0] + w01 * gx[y0, x0 + 1] + w10 * gx[y0 + 1, x0] + w11 * gx[y0 + 1, x0 + 1]
+    vy = w00 * gy[y0, x0] + w01 * gy[y0, x0 + 1] + w10 * gy[y0 + 1, x0] + w11 * gy[y0 + 1, x0 + 1]
+    radial = vx * c + vy * s
+    return -radial if inward else abs(radial)
+
+
+@njit(cache=True, nogil=True)
+def _best_circle(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray,
+                 cos_a: np.ndarray, sin_a: np.ndarray, inward: bool) -> tuple[int, int, int, float]:
+    """Indices (i, j, k) of the circle centred at (cols[i], rows[j]) of radius radii[k] whose score, the median of
+    ``_sample`` over its points at the angles (cos_a, sin_a), is the largest (the first in i, j, k order on a tie,
+    as ``np.argmax`` of the scores), and that score.
+
+    The same result as scoring every circle (the gradients finite), for less: the middle centre's circles are scored first, and a circle
+    is dropped as soon as more than half its samples lie below the best score so far (its median cannot reach it:
+    the upper middle sample is below, and the median is at most that).
+    """
     n = cos_a.size
-    out = np.zeros((cols.size, rows.size, radii.size))
     buf = np.empty(n)
-    for i in range(cols.size):
-        for j in range(rows.size):
-            for k in range(radii.size):
-                for a in range(n):
-                    x = cols[i] + radii[k] * cos_a[a]
-                    y = rows[j] + radii[k] * sin_a[a]
-                    x0 = int(math.floor(x))
-                    y0 = int(math.floor(y))
-                    if x0 < 0 or y0 < 0 or x0 + 1 >= w or y0 + 1 >= h:
-                        buf[a] = 0.0
-                        continue
-                    fx = x - x0
-                    fy = y - y0
-                    w00 = (1 - fx) * (1 - fy)
-                    w01 = fx * (1 - fy)
-                    w10 = (1 - fx) * fy
-                    w11 = fx * fy
-                    vx = w00 * gx[y0, x0] + w01 * gx[y0, x0 + 1] + w10 * gx[y0 + 1, x0] + w11 * gx[y0 + 1, x0 + 1]
-                    vy = w00 * gy[y0, x0] + w01 * gy[y0, x0 + 1] + w10 * gy[y0 + 1, x0] + w11 * gy[y0 + 1, x0 + 1]
-                    radial = vx * cos_a[a] + vy * sin_a[a]
-                    buf[a] = -radial if inward else abs(radial)
-                out[i, j, k] = np.median(buf)
-    return out
+    prune_at = n // 2 + 1  # samples below the best that put the upper middle sample below it
+    best, bi, bj, bk = -np.inf, -1, -1, -1
+    seed_i, seed_j = cols.size // 2, rows.size // 2
+    for p in range(-1, cols.size * rows.size):
+        if p < 0:  # the seeding pass: the middle centre, every radius
+            i, j = seed_i, seed_j
+        else:
+            i, j = p // rows.size, p % rows.size
+            if i == seed_i and j == seed_j:
+                continue
+        for k in range(radii.size):
+            below = 0
+            for a in range(n):
+                v = _sample(gx, gy, cols[i] + radii[k] * cos_a[a], rows[j] + radii[k] * sin_a[a], cos_a[a], sin_a[a],
+                            inward)
+                buf[a] = v
+                if v < best:
+                    below += 1
+                    if below >= prune_at:
+                        break
+            if below >= prune_at:
+                continue
+            m = np.median(buf)
+            if m > best or (m == best and (i, j, k) < (bi, bj, bk)):
+                best, bi, bj, bk = m, i, j, k
+    return bi, bj, bk, best
 
 
 def _best(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray, ang: np.ndarray,
           inward: bool) -> tuple[float, float, float, float]:
     """The best circle of the grid (centre col, row, radius) and its score, sampled at the angles ``ang``."""
-    s = _scores(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang), inward)
-    i, j, k = np.unravel_index(int(np.argmax(s)), s.shape)
-    return float(cols[i]), float(rows[j]), float(radii[k]), float(s[i, j, k])
+    i, j, k, score = _best_circle(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang), inward)
+    return float(cols[i]), float(rows[j]), float(radii[k]), float(score)
 
 
 def warm_up() -> None:
     """Compile (or load from the cache) the circle scores now, for the image types the chain gives."""
     g = np.zeros((4, 4))
     one = np.zeros(1)
-    _scores(g, g, one, one, one + 1.0, one + 1.0, one, False)
+    _best_circle(g, g, one, one, one + 1.0, one + 1.0, one, False)
 
 
 def limb_centre(image: np.ndarray, place_col_row: tuple[float, float], search_px: float, radius_min_px: float,
                 radius_max_px: float) -> LimbFit | None:
     """The circle of radius in [radius_min_px, radius_max_px], centred in the square of half-width ``search_px``
     about ``place_col_row``, along which ``image`` (2-D, any numeric type) steps most (module docstring); None when
-    the search window leaves the image or the radii are not positive and ordered."""
+    the search window leaves the image or holds non-finite values, or the radii are not positive and ordered."""
     return _fit(image, place_col_row, search_px, radius_min_px, radius_max_px, _PASSES,
                 lambda n: np.linspace(0.0, 2.0 * np.pi, n, endpoint=False), inward=False)
 
@@ -146,8 +172,8 @@ def _fit(image: np.ndarray, centre_col_row: tuple[float, float], search_px: floa
          radius_max_px: float, passes: tuple[tuple[float | None, float, int], ...], angles: Callable[[int], np.ndarray],
          inward: bool) -> LimbFit | None:
     """The best circle of the grid search ``passes`` (``_PASSES``) about ``centre_col_row``, sampled at
-    ``angles(n)`` (``_scores``); None when the search window leaves the image or the radii are not positive and
-    ordered."""
+    ``angles(n)`` (``_best_circle``); None when the search window leaves the image or holds non-finite values, or the
+    radii are not positive and ordered."""
     if not (0.0 < radius_min_px <= radius_max_px and search_px >= 0.0):
         return None
     if not all(math.isfinite(v) for v in (*centre_col_row, search_px, radius_min_px, radius_max_px)):
@@ -160,6 +186,8 @@ def _fit(image: np.ndarray, centre_col_row: tuple[float, float], search_px: floa
     if right - left < 3 or bottom - top < 3:
         return None
     crop = np.asarray(image[top:bottom, left:right], dtype=np.float64)
+    if not np.isfinite(crop).all():  # a float image's NaN or infinity has no step to measure
+        return None
     gy, gx = np.gradient(crop)
     c, r = centre_col_row[0] - left, centre_col_row[1] - top
     _, first_step, _ = passes[0]

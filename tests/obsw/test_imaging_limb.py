@@ -18,7 +18,7 @@ from tests.obsw.imaging_trials import PAPER_LIMIT_PX, ground_map, prediction_for
 
 from obsw.config import ImagingConfig
 from obsw.imaging import Detections, FramePrediction, process_frame
-from obsw.imaging_limb import limb_centre, limb_corrected, lit_limb_centre
+from obsw.imaging_limb import _best_circle, limb_centre, limb_corrected, lit_limb_centre
 
 CFG = ImagingConfig()
 # the chain's cuts the limb check judges: without deblending, whose objects are peaks of their own and not checked
@@ -70,6 +70,52 @@ def test_no_fit_outside_the_image_or_with_disordered_radii() -> None:
     assert limb_centre(image, (30.0, 30.0), 5.0, 6.0, 4.0) is None
     assert limb_centre(image, (30.0, 30.0), 5.0, 0.0, 4.0) is None
     assert limb_centre(image, (math.nan, 30.0), 5.0, 4.0, 6.0) is None
+    assert limb_centre(np.full((64, 64), math.nan), (30.0, 30.0), 5.0, 4.0, 6.0) is None
+
+
+def _scores_reference(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndarray, radii: np.ndarray,
+                      ang: np.ndarray, inward: bool) -> np.ndarray:
+    """Every circle's score, written plainly: the median over its points of the bilinearly sampled radial step."""
+    h, w = gx.shape
+    out = np.zeros((cols.size, rows.size, radii.size))
+    for i, c in enumerate(cols):
+        for j, r in enumerate(rows):
+            for k, rad in enumerate(radii):
+                x, y = c + rad * np.cos(ang), r + rad * np.sin(ang)
+                x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+                ok = (x0 >= 0) & (y0 >= 0) & (x0 + 1 < w) & (y0 + 1 < h)
+                x0, y0 = np.where(ok, x0, 0), np.where(ok, y0, 0)
+                fx, fy = x - x0, y - y0
+
+                def at(g: np.ndarray) -> np.ndarray:
+                    return ((1 - fx) * (1 - fy) * g[y0, x0] + fx * (1 - fy) * g[y0, x0 + 1]
+                            + (1 - fx) * fy * g[y0 + 1, x0] + fx * fy * g[y0 + 1, x0 + 1])
+
+                radial = at(gx) * np.cos(ang) + at(gy) * np.sin(ang)
+                out[i, j, k] = np.median(np.where(ok, -radial if inward else np.abs(radial), 0.0))
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), levels=st.integers(0, 6), inward=st.booleans(),
+       n_grid=st.integers(1, 7), n_radii=st.integers(1, 5), n_angles=st.sampled_from([5, 24, 48]))
+def test_the_pruned_circle_search_is_the_argmax_of_every_circle_scored(seed: int, levels: int, inward: bool,
+                                                                      n_grid: int, n_radii: int,
+                                                                      n_angles: int) -> None:
+    """The search that drops circles early picks the circle np.argmax picks over every circle's score, ties included."""
+    rng = np.random.default_rng(seed)
+    # few levels, many tied scores (none: a flat image, every circle tied at 0)
+    image = rng.integers(0, levels + 1, size=(24, 24)).astype(np.float64)
+    gy, gx = np.gradient(image)
+    cols = 11.0 + np.arange(n_grid) - n_grid // 2 + rng.uniform(0.0, 1.0)
+    rows = 11.0 + np.arange(n_grid) - n_grid // 2 + rng.uniform(0.0, 1.0)
+    radii = 2.0 + np.arange(n_radii) * 1.5
+    ang = np.linspace(0.0, 2.0 * np.pi, n_angles, endpoint=False)
+    scores = _scores_reference(gx, gy, cols, rows, radii, ang, inward)
+    want = np.unravel_index(int(np.argmax(scores)), scores.shape)
+    i, j, k, score = _best_circle(gx, gy, cols, rows, radii, np.cos(ang), np.sin(ang), inward)
+    assert (i, j, k) == tuple(int(v) for v in want)
+    assert score == pytest.approx(float(scores[want]), abs=1e-12)
 
 
 def _transit(rng: np.random.Generator, plume: bool, phase_deg: tuple[float, float] = (15.0, 40.0)) -> Scene:
