@@ -98,9 +98,9 @@ def _best_circle(gx: np.ndarray, gy: np.ndarray, cols: np.ndarray, rows: np.ndar
     ``_sample`` over its points at the angles (cos_a, sin_a), is the largest (the first in i, j, k order on a tie,
     as ``np.argmax`` of the scores), and that score.
 
-    The same result as scoring every circle (the gradients finite), for less: the middle centre's circles are scored first, and a circle
-    is dropped as soon as more than half its samples lie below the best score so far (its median cannot reach it:
-    the upper middle sample is below, and the median is at most that).
+    The same result as scoring every circle (the gradients finite), for less: the middle centre's circles are
+    scored first, and a circle is dropped as soon as more than half its samples lie below the best score so far (its
+    median cannot reach it: the upper middle sample is below, and the median is at most that).
     """
     n = cos_a.size
     buf = np.empty(n)
