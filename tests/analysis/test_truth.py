@@ -63,3 +63,30 @@ def test_cut_and_bad_rows_are_skipped_and_counted(tmp_path: Path) -> None:
     assert len(truth) == 2 and truth.t_s.tolist() == [0.0, 2.0]
     assert truth.skipped_rows == 2
     assert truth.skip_reason == "line 3: pointing_error_rad: 'oops' is not a float"
+
+
+@settings(max_examples=30, deadline=None)
+@given(n=st.integers(1, 23), chunk=st.integers(1, 6), bad=st.sets(st.integers(0, 22), max_size=5))
+def test_arrays_read_in_chunks_equal_the_arrays_of_every_record(tmp_path_factory, n: int, chunk: int,
+                                                                 bad: set[int]) -> None:
+    """load_truth reading a chunk at a time gives the arrays of all the file's records at once, skips counted."""
+    import analysis.truth as truth_module
+
+    path = tmp_path_factory.mktemp("truth") / "truth.csv"
+    log = TruthLog(path)
+    for i in range(n):
+        log.add(record(float(i), i if i % 3 else None))
+    log.close()
+    lines = path.read_text().splitlines()
+    for i in sorted(b for b in bad if b < n):
+        lines[1 + i] = lines[1 + i][:15]  # a row cut short
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(truth_module, "_CHUNK_ROWS", chunk)
+        got = load_truth(path)
+    records, skipped, reason = read_truth_records(path)
+    want = Truth.from_records(records, skipped, reason)
+    assert (got.skipped_rows, got.skip_reason) == (want.skipped_rows, want.skip_reason)
+    for name in ("t_s", "obt_s", "omega_rad_s", "target_in_fov", "frame_id", "dimorphos_px", "wheel_torque_nm"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(want, name))
+    assert len(got) == n - len({b for b in bad if b < n})
