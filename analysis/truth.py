@@ -101,39 +101,45 @@ def _truth_rows(path: Path) -> Iterator[TruthRecord | TruthTableError]:
                 yield TruthTableError(f"line {n}: {err}")
 
 
+@dataclass
+class _Skipped:
+    """Rows of a truth.csv skipped so far: how many, and why the first was."""
+
+    rows: int = 0
+    reason: str = ""
+
+
+def _record_chunks(path: Path, size: int, skipped: _Skipped) -> Iterator[list[TruthRecord]]:
+    """The records of a truth.csv in order, in lists of at most ``size``; the rows skipped counted in ``skipped``."""
+    chunk: list[TruthRecord] = []
+    for row in _truth_rows(path):
+        if isinstance(row, TruthTableError):
+            skipped.rows += 1
+            skipped.reason = skipped.reason or str(row)
+            continue
+        chunk.append(row)
+        if len(chunk) == size:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk
+
+
 def read_truth_records(path: Path) -> tuple[list[TruthRecord], int, str]:
     """The records of a truth.csv, how many rows were skipped and why the first was.
 
     A row is skipped, and counted, if its cell count differs from the header's (a node killed mid-write) or a
     cell does not read (``TruthTableError``). Raises TruthTableError naming the file if the header is unusable.
     """
-    records: list[TruthRecord] = []
-    skipped, reason = 0, ""
-    for row in _truth_rows(path):
-        if isinstance(row, TruthTableError):
-            skipped += 1
-            reason = reason or str(row)
-        else:
-            records.append(row)
-    return records, skipped, reason
+    skipped = _Skipped()
+    records = [r for chunk in _record_chunks(path, _CHUNK_ROWS, skipped) for r in chunk]
+    return records, skipped.rows, skipped.reason
 
 
 def load_truth(path: Path) -> Truth:
     """truth.csv as arrays; see ``read_truth_records`` for the rows it skips and the errors it raises. Read in
     chunks of ``_CHUNK_ROWS`` records, each turned into arrays before the next is read: the memory it takes beyond
     the arrays does not grow with the run (an hour's run held 42,000 records and its 1.5 million cells at once)."""
-    parts: list[Truth] = []
-    chunk: list[TruthRecord] = []
-    skipped, reason = 0, ""
-    for row in _truth_rows(path):
-        if isinstance(row, TruthTableError):
-            skipped += 1
-            reason = reason or str(row)
-            continue
-        chunk.append(row)
-        if len(chunk) == _CHUNK_ROWS:
-            parts.append(Truth.from_records(chunk))
-            chunk = []
-    if chunk or not parts:
-        parts.append(Truth.from_records(chunk))
-    return Truth.concatenated(parts, skipped, reason)
+    skipped = _Skipped()
+    parts = [Truth.from_records(chunk) for chunk in _record_chunks(path, _CHUNK_ROWS, skipped)]
+    return Truth.concatenated(parts or [Truth.from_records([])], skipped.rows, skipped.reason)
