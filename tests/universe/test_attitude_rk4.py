@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from tests.numerics import assert_within_ulps
@@ -61,6 +61,13 @@ def _period_in_numpy(dyn: SpacecraftDynamics, q: np.ndarray, w: np.ndarray, h: n
     return np.concatenate((x[:7], speeds))
 
 
+def _speed_terms(dyn: SpacecraftDynamics, expected: np.ndarray) -> float:
+    """A bound of the terms the rotor speeds are differences of, the rotor's momentum over its inertia and the body
+    rate along its axis (the first is the speed plus the second): their rounding is the speeds'."""
+    along = np.abs(dyn.wheel_axes_body.T @ expected[4:7]).max(initial=0.0)
+    return float(np.abs(expected[7:]).max(initial=0.0) + along)
+
+
 _DYNAMICS = {layout: SpacecraftDynamics(SpacecraftConfig.model_validate({"wheels": {"layout": layout}}))
              for layout in ("orthogonal", "pyramid")}
 _finite = st.floats(-1.0, 1.0, allow_nan=False)
@@ -73,6 +80,8 @@ _finite = st.floats(-1.0, 1.0, allow_nan=False)
        u=st.lists(st.floats(-0.01, 0.01), min_size=8, max_size=8), switch=st.sampled_from([0.0, 0.0, 0.004, 0.1]),
        dt_s=st.sampled_from([0.1, 0.05, 0.5]), off=st.lists(st.booleans(), min_size=4, max_size=4),
        stuck=st.sets(st.integers(0, 3), max_size=2))
+@example(layout="pyramid", q=[0.0, 0.0, 0.0, 0.0], w=[0.1875, -0.125, 0.0], h=[0.0] * 4, u=[0.0] * 8, switch=0.0,
+         dt_s=0.5, off=[False] * 4, stuck={1, 3})  # still wheels: speeds of 0.0017 from terms of 0.13
 def test_one_compiled_period_gives_the_bits_of_its_numpy_composition(
         layout: str, q: list[float], w: list[float], h: list[float], u: list[float], switch: float, dt_s: float,
         off: list[bool], stuck: set[int]) -> None:
@@ -96,5 +105,8 @@ def test_one_compiled_period_gives_the_bits_of_its_numpy_composition(
                         dyn._friction_rate_s, mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat,
                         dyn.rotor_inertia_kgm2, dyn.max_momentum_nms, dyn._viscous, dyn._coulomb, 1.0 / dyn._smooth,
                         dyn.wheel_axes_body, mode.free, out)
-    for part in (slice(0, 4), slice(4, 7), slice(7, None)):
+    for part in (slice(0, 4), slice(4, 7)):
         assert_within_ulps(out[part], expected[part])
+    # a still wheel's speed is a small difference of larger terms (seen: 0.0017 rad/s from terms of 0.13, 0.5 ulp of
+    # the terms apart)
+    assert_within_ulps(out[7:], expected[7:], magnitude=_speed_terms(dyn, expected))
