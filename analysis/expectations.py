@@ -110,7 +110,7 @@ def judge(data: RunData, figures: RunFigures, error: str | None, nonfinite: str 
         n = sum(type(e).__name__ == name for _, e in events)
         v.checks.append(Check(f"no {name}", n == 0, f"{n} reported"))
     if expect.final_mode is not None:
-        last = tm.housekeeping[-1][1].mode if tm is not None and tm.housekeeping else None
+        last = tm.housekeeping.last[1].mode if tm is not None and tm.housekeeping.last is not None else None
         v.checks.append(Check(f"final mode {expect.final_mode.name}", last == expect.final_mode,
                               "no housekeeping" if last is None else f"{pus.Mode(last).name} in the last housekeeping"))
     if expect.wheel_momentum_max_nms is not None:

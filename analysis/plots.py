@@ -64,7 +64,8 @@ def pointing_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sect
     s = Section("Pointing error", f"Angle between the camera boresight and Dimorphos; it must stay under {limit:g} deg "
                 "(half the field of view) in the shaded window.", file_name="pointing_error.png")
     truth, tm, ca = data.truth, data.telemetry, figs.true_ca_obt_s
-    hk = [(t, h.pointing_error_rad) for t, h in (tm.housekeeping if tm else []) if h.pointing_error_rad is not None]
+    hk_t, (hk_e,) = tm.housekeeping.present("pointing_error_rad") if tm else (np.empty(0), [np.empty(0)])
+    hk = hk_t.size > 0
     if truth is None:
         s.missing.append("no truth: the true pointing error is missing")
     if not hk:
@@ -79,8 +80,7 @@ def pointing_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sect
         if figs.max_pointing_error_deg is not None:
             peak = max(peak, figs.max_pointing_error_deg)
     if hk:
-        t, e = np.array(hk).T
-        ax.plot(t - ca, np.degrees(e), ".", color=TM_COLOUR, ms=3, label="on-board estimate (HK)")
+        ax.plot(hk_t - ca, np.degrees(hk_e), ".", color=TM_COLOUR, ms=3, label="on-board estimate (HK)")
     ax.axhline(limit, color=LIMIT_COLOUR, lw=1.2, ls="--", label=f"half FOV {limit:g} deg")
     top = 1.4 * peak
     ax.set_ylim(0, top)
@@ -98,7 +98,7 @@ def rate_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     need = cfg.peak_rate_required_deg_s
     s = Section("Body rate", f"Norm of the body rate; the flyby must reach {need:g} deg/s.", file_name="body_rate.png")
     truth, tm, ca = data.truth, data.telemetry, figs.true_ca_obt_s
-    hk = [(t, *h.rate_rad_s) for t, h in (tm.housekeeping if tm else [])]
+    hk = tm is not None and bool(tm.housekeeping)
     if truth is None:
         s.missing.append("no truth: the true body rate is missing")
     if not hk:
@@ -109,9 +109,9 @@ def rate_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     if truth is not None:
         ax.plot(truth.obt_s - ca, np.degrees(np.linalg.norm(truth.omega_rad_s, axis=1)), color=TRUTH_COLOUR, lw=1,
                 label="truth |omega|")
-    if hk:
-        a = np.array(hk)
-        ax.plot(a[:, 0] - ca, np.degrees(np.linalg.norm(a[:, 1:], axis=1)), ".", color=TM_COLOUR, ms=3,
+    if tm is not None and hk:
+        rate = tm.housekeeping.column("rate_rad_s")
+        ax.plot(tm.housekeeping.t_s - ca, np.degrees(np.linalg.norm(rate, axis=1)), ".", color=TM_COLOUR, ms=3,
                 label="on-board |omega| (HK)")
     ax.axhline(need, color=LIMIT_COLOUR, lw=1.2, ls="--", label=f"required peak {need:g} deg/s")
     _ca_lines(ax, cfg)
@@ -138,9 +138,9 @@ def wheels_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sectio
             ax_h.plot(truth.obt_s - ca, truth.wheel_momentum_nms[:, i], lw=1, label=f"wheel {i}")
             ax_u.plot(truth.obt_s - ca, truth.wheel_torque_nm[:, i] * 1e3, lw=1, label=f"wheel {i}")
     elif tm is not None:
-        t = np.array([t for t, _ in tm.housekeeping])
-        h = np.array([hk.wheel_momentum_nms for _, hk in tm.housekeeping])
-        for i in range(h.shape[1]):
+        t = tm.housekeeping.t_s
+        h = tm.housekeeping.column("wheel_momentum_nms")
+        for i in np.flatnonzero(np.isfinite(h).any(axis=0)):  # the slots some report used
             ax_h.plot(t - ca, h[:, i], ".", ms=3, label=f"wheel {i} (HK)")
         ax_u.text(0.5, 0.5, "torque missing (no truth)", transform=ax_u.transAxes, ha="center")
     for ax, lim in ((ax_h, w.max_momentum_nms), (ax_u, w.max_torque_nm * 1e3)):
@@ -226,8 +226,9 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
                 "barycentre on the same axes.", file_name="ca_estimates.png")
     tm, ca = data.telemetry, figs.true_ca_obt_s
     d_true = figs.true_ca_distance_km
-    hk = [(t, h.best_ca_obt_s, h.best_ca_distance_km) for t, h in (tm.housekeeping if tm else [])
-          if h.best_ca_obt_s is not None]
+    hk_t, (hk_ca, hk_d) = (tm.housekeeping.present("best_ca_obt_s", "best_ca_distance_km") if tm
+                           else (np.empty(0), [np.empty(0), np.empty(0)]))
+    hk = hk_t.size > 0
     est = tm.estimates if tm else []
     if not est:
         s.missing.append("no EstimateReport in the telemetry" if tm else "no telemetry")
@@ -239,9 +240,8 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
     fig, axes = _figure(3 if offsets.size else 2, 2.8)
     ax_t, ax_d = axes[:2]
     if hk:
-        a = np.array(hk, dtype=float)
-        ax_t.plot(a[:, 0] - ca, a[:, 1] - ca, ".", color="0.6", ms=3, label="grid (HK)")
-        ax_d.plot(a[:, 0] - ca, a[:, 2] - d_true, ".", color="0.6", ms=3, label="grid (HK)")
+        ax_t.plot(hk_t - ca, hk_ca - ca, ".", color="0.6", ms=3, label="grid (HK)")
+        ax_d.plot(hk_t - ca, hk_d - d_true, ".", color="0.6", ms=3, label="grid (HK)")
     grid = [(t, e.grid_ca_obt_s, e.grid_ca_distance_km) for t, e in est if e.grid_ca_obt_s is not None]
     cont = [(t, e.continuous_ca_obt_s, e.continuous_ca_distance_km, e.continuous_sigma_time_s,
              e.continuous_sigma_distance_km) for t, e in est if e.continuous_ca_obt_s is not None]
@@ -343,7 +343,7 @@ def modes_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section
     if tm is None or (not tm.mode_changes and not tm.housekeeping):
         s.missing.append("no mode-change event and no housekeeping in the telemetry")
         return s
-    hk = [(t, int(h.mode)) for t, h in tm.housekeeping]
+    hk = list(zip(tm.housekeeping.t_s.tolist(), tm.housekeeping.column("mode").astype(int).tolist(), strict=True))
     if not tm.mode_changes:
         s.missing.append("no ModeChangedEvent: timeline from housekeeping only")
     last = max([t for t, _ in hk] + [t for t, _ in tm.mode_changes])
@@ -406,21 +406,21 @@ def timing_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sectio
     s = Section("On-board timing", "Housekeeping: exposure to line of sight on board and line of sight to the torques "
                 "using it (top); each task's longest execution time so far at the end of the run (bottom).",
                 file_name="timing.png")
-    hk = [] if data.telemetry is None else data.telemetry.housekeeping
-    if not hk:
+    hk = None if data.telemetry is None else data.telemetry.housekeeping
+    if hk is None or hk.last is None:
         s.missing.append("no housekeeping in the telemetry")
         return s
     ca = figs.true_ca_obt_s
     fig, (ax, bx) = _figure(2, 2.6)
     for name, label in (("exposure_to_centroid_s", "exposure to line of sight"),
                         ("centroid_to_torque_s", "line of sight to torques")):
-        pts = [(t - ca, 1e3 * getattr(h, name)) for t, h in hk if getattr(h, name) is not None]
-        if pts:
-            ax.plot(*np.array(pts).T, ".-", ms=3, lw=0.8, label=label)
+        t, (v,) = hk.present(name)
+        if t.size:
+            ax.plot(t - ca, 1e3 * v, ".-", ms=3, lw=0.8, label=label)
     ax.set_ylabel("latency, ms")
     _ca_lines(ax, cfg)
     ax.legend(fontsize=8)
-    last = hk[-1][1]
+    last = hk.last[1]
     bx.bar([t.name for t in Task], [1e3 * x for x in last.task_time_max_s], color=TM_COLOUR)
     bx.set_ylabel("longest execution, ms")
     bx.tick_params(axis="x", labelsize=7)

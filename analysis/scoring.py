@@ -225,10 +225,9 @@ def estimate_at(tm: Telemetry | None, obt_s: float) -> tuple[pus.EstimateReport 
     for t, e in tm.estimates:
         if t <= obt_s:
             est = e
-    hk_best = None
-    for t, hk in tm.housekeeping:
-        if t <= obt_s and hk.best_ca_obt_s is not None and hk.best_ca_distance_km is not None:
-            hk_best = (hk.best_ca_obt_s, hk.best_ca_distance_km)
+    t, (best_t, best_d) = tm.housekeeping.present("best_ca_obt_s", "best_ca_distance_km")
+    before = np.flatnonzero(t <= obt_s)
+    hk_best = None if not before.size else (float(best_t[before[-1]]), float(best_d[before[-1]]))
     return est, hk_best
 
 

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from analysis.report_columns import ReportColumns
 from contracts import pus
 from ground.archive import Archive, ArchiveError
 from ground.segment import ReceivedPacket
@@ -16,29 +17,54 @@ MODE_NAMES = {m.value: m.name for m in pus.Mode}
 
 @dataclass
 class Telemetry:
-    """The decoded telemetry of a run, by kind, each entry (packet OBT s, report), in stream order."""
+    """The decoded telemetry of a run, by kind, each entry (packet OBT s, report), in stream order; the housekeeping,
+    a report a second however long the run, as columns (``analysis.report_columns``)."""
 
     source: str
     packets: int = 0
     undecodable: int = 0
     truncated_tail_octets: int = 0
-    housekeeping: list[tuple[float, pus.Housekeeping]] = field(default_factory=list)
+    housekeeping: ReportColumns[pus.Housekeeping] = field(default_factory=lambda: ReportColumns(pus.Housekeeping))
     navigation: list[tuple[float, pus.NavigationReport]] = field(default_factory=list)
     estimates: list[tuple[float, pus.EstimateReport]] = field(default_factory=list)
     mode_changes: list[tuple[float, pus.ModeChangedEvent]] = field(default_factory=list)
     events: list[tuple[float, pus.EventReport]] = field(default_factory=list)
     by_type: dict[tuple[int, int, str], int] = field(default_factory=dict)  # (service, subtype, report): count
 
+    def add(self, decoded: tuple[pus.TmHeader, pus.TmReport] | None) -> None:
+        """Count and file one packet's decoding (None: an undecodable packet)."""
+        self.packets += 1
+        if decoded is None:
+            self.undecodable += 1
+            return
+        header, report = decoded
+        key = (header.service, header.subservice, type(report).__name__)
+        self.by_type[key] = self.by_type.get(key, 0) + 1
+        t = header.obt_s
+        if isinstance(report, pus.Housekeeping):
+            self.housekeeping.append(t, report)
+        elif isinstance(report, pus.NavigationReport):
+            self.navigation.append((t, report))
+        elif isinstance(report, pus.EstimateReport):
+            self.estimates.append((t, report))
+        elif isinstance(report, pus.EventReport):
+            self.events.append((t, report))
+            if isinstance(report, pus.ModeChangedEvent):
+                self.mode_changes.append((t, report))
 
-def decoded_telemetry(packets: Sequence[bytes], source: str) -> Telemetry:
-    """Decode TM packets into a Telemetry; undecodable ones are counted, never fatal."""
-    pairs: list[tuple[pus.TmHeader, pus.TmReport] | None] = []
+
+def decoded_telemetry(packets: Iterable[bytes], source: str) -> Telemetry:
+    """Decode TM packets into a Telemetry, one at a time (no list of every decoded report is held); undecodable ones
+    are counted, never fatal."""
+    tm = Telemetry(source=source)
     for raw in packets:
         try:
-            pairs.append(pus.decode_tm(raw))
+            decoded: tuple[pus.TmHeader, pus.TmReport] | None = pus.decode_tm(raw)
         except pus.PacketError:
-            pairs.append(None)
-    return telemetry_of(pairs, source)
+            decoded = None
+        tm.add(decoded)
+    tm.housekeeping.trim()
+    return tm
 
 
 def received_telemetry(received: Iterable[ReceivedPacket], source: str) -> Telemetry:
@@ -47,27 +73,12 @@ def received_telemetry(received: Iterable[ReceivedPacket], source: str) -> Telem
                          for p in received], source)
 
 
-def telemetry_of(decoded: Sequence[tuple[pus.TmHeader, pus.TmReport] | None], source: str) -> Telemetry:
+def telemetry_of(decoded: Iterable[tuple[pus.TmHeader, pus.TmReport] | None], source: str) -> Telemetry:
     """A Telemetry from packets already decoded (None: an undecodable one, counted)."""
-    tm = Telemetry(source=source, packets=len(decoded))
+    tm = Telemetry(source=source)
     for item in decoded:
-        if item is None:
-            tm.undecodable += 1
-            continue
-        header, report = item
-        key = (header.service, header.subservice, type(report).__name__)
-        tm.by_type[key] = tm.by_type.get(key, 0) + 1
-        t = header.obt_s
-        if isinstance(report, pus.Housekeeping):
-            tm.housekeeping.append((t, report))
-        elif isinstance(report, pus.NavigationReport):
-            tm.navigation.append((t, report))
-        elif isinstance(report, pus.EstimateReport):
-            tm.estimates.append((t, report))
-        elif isinstance(report, pus.EventReport):
-            tm.events.append((t, report))
-            if isinstance(report, pus.ModeChangedEvent):
-                tm.mode_changes.append((t, report))
+        tm.add(item)
+    tm.housekeeping.trim()
     return tm
 
 

@@ -69,15 +69,8 @@ class Truth:
             skip_reason=skip_reason,
         )
 
-    @classmethod
-    def concatenated(cls, parts: Sequence[Truth], skipped_rows: int = 0, skip_reason: str = "") -> Truth:
-        """The rows of ``parts`` (at least one) one after the other, as one Truth."""
-        arrays = {f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                  for f in fields(cls) if f.name not in ("skipped_rows", "skip_reason")}
-        return cls(**arrays, skipped_rows=skipped_rows, skip_reason=skip_reason)
 
-
-_CHUNK_ROWS = 4096  # records turned into arrays at a time: a long run's truth is never held as objects
+_CHUNK_ROWS = 1024  # records turned into arrays at a time: a long run's truth is never held as objects
 
 
 def _truth_rows(path: Path) -> Iterator[TruthRecord | TruthTableError]:
@@ -136,10 +129,38 @@ def read_truth_records(path: Path) -> tuple[list[TruthRecord], int, str]:
     return records, skipped.rows, skipped.reason
 
 
+def _lines(path: Path) -> int:
+    """The number of lines of a file (a last line without its newline counted), read in blocks."""
+    n, last = 0, b"\n"
+    with open(path, "rb") as f:
+        while block := f.read(1 << 20):
+            n += block.count(b"\n")
+            last = block[-1:]
+    return n + (last != b"\n")
+
+
 def load_truth(path: Path) -> Truth:
     """truth.csv as arrays; see ``read_truth_records`` for the rows it skips and the errors it raises. Read in
-    chunks of ``_CHUNK_ROWS`` records, each turned into arrays before the next is read: the memory it takes beyond
-    the arrays does not grow with the run (an hour's run held 42,000 records and its 1.5 million cells at once)."""
+    chunks of ``_CHUNK_ROWS`` records, each turned into arrays and copied into arrays sized from the file's line
+    count before the next is read: the memory it takes beyond the arrays does not grow with the run (an hour's run
+    held 42,000 records and its 1.5 million cells at once, then its arrays twice while they were joined)."""
     skipped = _Skipped()
-    parts = [Truth.from_records(chunk) for chunk in _record_chunks(path, _CHUNK_ROWS, skipped)]
-    return Truth.concatenated(parts or [Truth.from_records([])], skipped.rows, skipped.reason)
+    rows = max(_lines(path) - 1, 0)  # at most one record a line after the header
+    out: dict[str, NDArray] | None = None
+    at = 0
+    names = [f.name for f in fields(Truth) if f.name not in ("skipped_rows", "skip_reason")]
+    for chunk in _record_chunks(path, _CHUNK_ROWS, skipped):
+        part = Truth.from_records(chunk)
+        if out is None:
+            out = {n: np.empty((max(rows, len(part)), *getattr(part, n).shape[1:]), getattr(part, n).dtype)
+                   for n in names}
+        for n in names:
+            a = getattr(part, n)
+            if at + len(a) > out[n].shape[0]:  # more records than lines: a cell holding a newline; grow
+                out[n] = np.concatenate([out[n][:at], np.empty((at + len(a), *a.shape[1:]), a.dtype)])
+            out[n][at : at + len(a)] = a
+        at += len(part)
+    if out is None:
+        return Truth.from_records([], skipped.rows, skipped.reason)
+    return Truth(**{n: v[:at] for n, v in out.items()}, skipped_rows=skipped.rows,  # type: ignore[arg-type]
+                 skip_reason=skipped.reason)

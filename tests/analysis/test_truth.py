@@ -66,10 +66,12 @@ def test_cut_and_bad_rows_are_skipped_and_counted(tmp_path: Path) -> None:
 
 
 @settings(max_examples=30, deadline=None)
-@given(n=st.integers(1, 23), chunk=st.integers(1, 6), bad=st.sets(st.integers(0, 22), max_size=5))
+@given(n=st.integers(1, 23), chunk=st.integers(1, 6), bad=st.sets(st.integers(0, 22), max_size=5),
+       end=st.sampled_from(["\n", "\r\n", "\r"]), final=st.booleans())
 def test_arrays_read_in_chunks_equal_the_arrays_of_every_record(tmp_path_factory, n: int, chunk: int,
-                                                                 bad: set[int]) -> None:
-    """load_truth reading a chunk at a time gives the arrays of all the file's records at once, skips counted."""
+                                                                 bad: set[int], end: str, final: bool) -> None:
+    """load_truth reading a chunk at a time into arrays sized from the line count gives the arrays of all the
+    file's records at once, skips counted, whatever the line ends and whether the last line has one."""
     import analysis.truth as truth_module
 
     path = tmp_path_factory.mktemp("truth") / "truth.csv"
@@ -80,7 +82,7 @@ def test_arrays_read_in_chunks_equal_the_arrays_of_every_record(tmp_path_factory
     lines = path.read_text().splitlines()
     for i in sorted(b for b in bad if b < n):
         lines[1 + i] = lines[1 + i][:15]  # a row cut short
-    path.write_text("\n".join(lines) + "\n")
+    path.write_bytes((end.join(lines) + (end if final else "")).encode())
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(truth_module, "_CHUNK_ROWS", chunk)
         got = load_truth(path)
