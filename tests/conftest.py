@@ -1,5 +1,6 @@
 """Test-wide settings: Hypothesis never times an example against the wall clock (a loaded CI machine would fail
-tests that are right); each test still bounds its examples with ``max_examples``. The compiled kernels are compiled
+tests that are right); each test still bounds its examples with ``max_examples``, drawn the same at every run unless
+``FLYBY_HYPOTHESIS=explore``. The compiled kernels are compiled
 (or loaded from their cache) in two background processes as the session starts, on the core the tests leave idle:
 on a fresh install that is about a minute of compilation the first test to need them no longer pays alone."""
 
@@ -13,8 +14,11 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-settings.register_profile("flyby", deadline=None)
-settings.load_profile("flyby")
+# the suite's examples are the same at every run (derandomize: the README's test command, CI), so a red run is a
+# change's, never a draw's; FLYBY_HYPOTHESIS=explore draws new examples each run, to look for cases on purpose
+settings.register_profile("flyby", deadline=None, derandomize=True)
+settings.register_profile("explore", deadline=None)
+settings.load_profile("explore" if os.environ.get("FLYBY_HYPOTHESIS") == "explore" else "flyby")
 
 ROOT = Path(__file__).resolve().parents[1]
 
