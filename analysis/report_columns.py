@@ -1,11 +1,12 @@
 """Telemetry reports of one kind held as columns, their layout taken from the dictionary.
 
 A decoded report is a frozen pydantic value of some 4 KB (the housekeeping's 60-odd numbers as Python floats in
-tuples, its field dictionary); an hour of housekeeping at 1 Hz took 16 MB of the report's memory that way, ten times
-what the run wrote to disk. ``ReportColumns`` keeps each report as one row of float64 (8 octets a value: integers and
+tuples, its field dictionary); an hour of housekeeping at 1 Hz took 16 MB of the report's memory that way (the whole
+tm.bin of that run is 1.1 MB). ``ReportColumns`` keeps each report as one row of float64 (8 octets a value: integers and
 enumeration codes are exact up to 2**53, a float32 on the wire exactly) and the last report whole, for the counters a
 report quotes "to the last housekeeping". The columns follow from the packet's ``LAYOUT``: a scalar is one column, a
-vector its n, a padded array its slots; an absent optional value and the unused slots of a padded array are NaN.
+vector its n, a padded array its slots; an absent optional value and the unused slots of a padded array are NaN
+(so ``present`` also leaves out a value sent as NaN, which a chart could not draw either).
 """
 
 from __future__ import annotations
