@@ -28,7 +28,8 @@ from analysis.frames import frame_marks, frame_obt_s, load_gray, spread_ids  # n
 from analysis.page import Section  # noqa: E402
 from analysis.runfolder import RunData  # noqa: E402
 from analysis.scoring import RunFigures, centroid_errors_px, estimate_at  # noqa: E402
-from analysis.telemetry import MODE_NAMES  # noqa: E402
+from analysis.report_columns import ReportColumns  # noqa: E402
+from analysis.telemetry import MODE_NAMES, Telemetry  # noqa: E402
 
 TRUTH_COLOUR, TM_COLOUR, LIMIT_COLOUR, CHOSEN_COLOUR = "tab:blue", "tab:orange", "tab:red", "tab:green"
 
@@ -58,13 +59,18 @@ def _ca_lines(ax, cfg: ReportConfig, window: tuple[float, float] | None = None, 
     ax.set_xlabel("OBT - true C/A, s")
 
 
+def _housekeeping(tm: Telemetry | None) -> ReportColumns[pus.Housekeeping]:
+    """The run's housekeeping columns; none (empty columns) without telemetry."""
+    return tm.housekeeping if tm is not None else ReportColumns(pus.Housekeeping)
+
+
 def pointing_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     """True (and on-board estimated) pointing error against time, with the half-FOV line."""
     limit = data.scenario.universe.camera.fov_deg * cfg.max_pointing_error_fov_fraction
     s = Section("Pointing error", f"Angle between the camera boresight and Dimorphos; it must stay under {limit:g} deg "
                 "(half the field of view) in the shaded window.", file_name="pointing_error.png")
     truth, tm, ca = data.truth, data.telemetry, figs.true_ca_obt_s
-    hk_t, (hk_e,) = tm.housekeeping.present("pointing_error_rad") if tm else (np.empty(0), [np.empty(0)])
+    hk_t, (hk_e,) = _housekeeping(tm).present("pointing_error_rad")
     hk = hk_t.size > 0
     if truth is None:
         s.missing.append("no truth: the true pointing error is missing")
@@ -98,7 +104,7 @@ def rate_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     need = cfg.peak_rate_required_deg_s
     s = Section("Body rate", f"Norm of the body rate; the flyby must reach {need:g} deg/s.", file_name="body_rate.png")
     truth, tm, ca = data.truth, data.telemetry, figs.true_ca_obt_s
-    hk = tm is not None and bool(tm.housekeeping)
+    hk = _housekeeping(tm)
     if truth is None:
         s.missing.append("no truth: the true body rate is missing")
     if not hk:
@@ -109,9 +115,9 @@ def rate_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section:
     if truth is not None:
         ax.plot(truth.obt_s - ca, np.degrees(np.linalg.norm(truth.omega_rad_s, axis=1)), color=TRUTH_COLOUR, lw=1,
                 label="truth |omega|")
-    if tm is not None and hk:
-        rate = tm.housekeeping.column("rate_rad_s")
-        ax.plot(tm.housekeeping.t_s - ca, np.degrees(np.linalg.norm(rate, axis=1)), ".", color=TM_COLOUR, ms=3,
+    if hk:
+        rate = hk.column("rate_rad_s")
+        ax.plot(hk.t_s - ca, np.degrees(np.linalg.norm(rate, axis=1)), ".", color=TM_COLOUR, ms=3,
                 label="on-board |omega| (HK)")
     ax.axhline(need, color=LIMIT_COLOUR, lw=1.2, ls="--", label=f"required peak {need:g} deg/s")
     _ca_lines(ax, cfg)
@@ -226,8 +232,7 @@ def estimates_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Sec
                 "barycentre on the same axes.", file_name="ca_estimates.png")
     tm, ca = data.telemetry, figs.true_ca_obt_s
     d_true = figs.true_ca_distance_km
-    hk_t, (hk_ca, hk_d) = (tm.housekeeping.present("best_ca_obt_s", "best_ca_distance_km") if tm
-                           else (np.empty(0), [np.empty(0), np.empty(0)]))
+    hk_t, (hk_ca, hk_d) = _housekeeping(tm).present("best_ca_obt_s", "best_ca_distance_km")
     hk = hk_t.size > 0
     est = tm.estimates if tm else []
     if not est:

@@ -69,8 +69,8 @@ def decoded_telemetry(packets: Iterable[bytes], source: str) -> Telemetry:
 
 def received_telemetry(received: Iterable[ReceivedPacket], source: str) -> Telemetry:
     """The Telemetry of the packets ground received (their decoding is kept, so nothing is decoded twice)."""
-    return telemetry_of([None if p.header is None or p.report is None else (p.header, p.report)
-                         for p in received], source)
+    return telemetry_of((None if p.header is None or p.report is None else (p.header, p.report)
+                         for p in received), source)
 
 
 def telemetry_of(decoded: Iterable[tuple[pus.TmHeader, pus.TmReport] | None], source: str) -> Telemetry:

@@ -156,8 +156,9 @@ def load_truth(path: Path) -> Truth:
                    for n in names}
         for n in names:
             a = getattr(part, n)
-            if at + len(a) > out[n].shape[0]:  # more records than lines: a cell holding a newline; grow
-                out[n] = np.concatenate([out[n][:at], np.empty((at + len(a), *a.shape[1:]), a.dtype)])
+            if at + len(a) > out[n].shape[0]:  # more records than line feeds (lone CR line ends): grow by doubling
+                size = max(at + len(a), 2 * out[n].shape[0])
+                out[n] = np.concatenate([out[n][:at], np.empty((size - at, *a.shape[1:]), a.dtype)])
             out[n][at : at + len(a)] = a
         at += len(part)
     if out is None:
