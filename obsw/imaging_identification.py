@@ -15,8 +15,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
   source (``light_spread_px2``: a star brighter than a small Didymos), and, when the candidate chosen holds
   Dimorphos's predicted place with more than both bodies' expected areas, another extended candidate off the place
-  within the orbit's reach, of Didymos's size and with at least half its light (``_beside_ejecta``: ejecta leave
-  Dimorphos, so a fan of them brighter than a crescent at high phase holds the place). When it need not be, shape
+  within the orbit's reach of the place and of that candidate, of Didymos's size and with at least half its light
+  (``_beside_ejecta``: ejecta leave Dimorphos, so a fan of them brighter than a crescent at high phase holds the
+  place, and Didymos is within the orbit's radius of the Dimorphos the fan holds). When it need not be, shape
   cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
   likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
   first when Didymos may be resolved (a star never is); without a prediction, the largest. When the blob so chosen
@@ -574,18 +575,24 @@ def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expec
                    regions: Regions, cfg: ImagingConfig) -> int:
     """The index of Didymos when the ``best`` candidate holds Dimorphos's place with more than both bodies' expected
     areas (Dimorphos with the ejecta it sheds, Didymos beside it or not): another extended candidate off the place,
-    within the orbit's reach, of Didymos's size (within its largest region, at least its expected area at the
-    farthest range) and with at least half the light; else ``best``. Ejecta leave Dimorphos, so a fan of them
-    brighter than a crescent holds the place; a second body-sized region within the orbit's reach is Didymos."""
+    within the orbit's reach of the place and of ``best``, of Didymos's size (within its largest region, at least
+    its expected area at the farthest range) and with at least half the light; else ``best``. Ejecta leave
+    Dimorphos, so a fan of them brighter than a crescent holds the place; a second body-sized region within the
+    orbit's reach is Didymos. The reach is from ``best`` too: the Dimorphos it would hold lies within its box, give
+    or take Dimorphos's radius and the blur, and Didymos's limb within the orbit's radius and Didymos's of that
+    Dimorphos; when the place is known to less than the orbit's radius, the reach from the place says little more,
+    but a place known to tens of px would let a region far beyond the orbit (a pair of stars) pass for Didymos."""
     b = blobs[best]
     both = exp.didymos_area + exp.dimorphos_area
     if b.area_px <= both or _box_distance(b, place.col_row) > place.radius_px:
         return best
     reach = place.radius_px + exp.orbit_radius_max + exp.didymos_radius_max
+    gap = exp.orbit_radius_max + exp.didymos_radius_max + exp.dimorphos_radius_max + psf_reach_px(cfg)
     smallest = exp.didymos_area / exp.radius_factor_max ** 2
     beside = [i for i, c in enumerate(blobs)
               if i != best and smallest <= c.area_px <= exp.didymos_area_max and lights[i] >= 0.5 * lights[best]
-              and place.radius_px < _box_distance(c, place.col_row) <= reach and not _point_source(regions, c, cfg)]
+              and place.radius_px < _box_distance(c, place.col_row) <= reach and _box_gap_px(b, c) <= gap
+              and not _point_source(regions, c, cfg)]
     return max(beside, key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label)) if beside else best
 
 

@@ -1107,3 +1107,41 @@ def test_the_blur_keeps_a_crescents_peak_as_a_convolved_strip_does(radius_px: fl
     assert peak == pytest.approx(numeric, abs=1e-6)
     assert 0.0 <= peak <= 1.0
     assert _crescent_peak(radius_px * 1.5, lit, cfg) >= peak
+
+
+def _small_pair_and_two_stars_far_off(seed: int) -> tuple[Scene, FramePrediction]:
+    """Didymos about 6 px across (binned) at 100-110 deg of phase with a 1 px Dimorphos 8 px from it, blurred into
+    one region larger than both bodies; two stars 2.3 px apart (binned), one blob of a star pair's spread; the place
+    known to 90 px (3 sigma) and put 15 px off Dimorphos, away from the stars, which lie 96-104 px from it: beyond
+    the place's radius, within its reach, and 8-9 orbit radii from the bodies (bench seed 52 frame 242, where the
+    stars were reported as Didymos, 121 px off)."""
+    rng = np.random.default_rng([91, seed])
+    col, row = 512.0 + rng.uniform(-40, 40), 512.0 + rng.uniform(-40, 40)
+    a, b = rng.uniform(0.0, 2.0 * math.pi, 2)
+    q = (0.0, 0.0, 0.0, 1.0)
+    dim_col, dim_row = col + 16.0 * math.cos(a), row + 16.0 * math.sin(a)
+    far = 2.0 * (rng.uniform(96.0, 104.0) - 15.0)
+    s_col, s_row = dim_col + far * math.cos(b), dim_row + far * math.sin(b)
+    scene = Scene(
+        bodies=(Ellipsoid(col, row, 1.3984e6, (5.9, 5.7, 5.4), q, 1100.0, law="lunar-lambert", law_parameter=0.37),
+                Ellipsoid(dim_col, dim_row, 1.3988e6, (1.4, 1.3, 1.0), q, 1150.0, law="minnaert", law_parameter=0.9)),
+        range_m=1.3988e6, phase_deg=float(rng.uniform(100.0, 110.0)), sun_azimuth_deg=float(rng.uniform(0.0, 360.0)),
+        stars=((s_col, s_row, 1200.0), (s_col + 4.7 * math.cos(b + 1.2), s_row + 4.7 * math.sin(b + 1.2), 500.0)),
+        psf_sigma_px=1.04, bias_dn=144.0, read_noise_dn=5.5, gain_e_per_dn=3.0)
+    prediction = prediction_for(scene, np.random.default_rng([92, seed]), None)
+    place = ((dim_col - 0.5) / 2.0 - 15.0 * math.cos(b), (dim_row - 0.5) / 2.0 - 15.0 * math.sin(b))
+    return scene, replace(prediction, dimorphos_col_row=place, dimorphos_uncertainty_px=90.0)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_star_pair_beyond_the_orbit_s_reach_of_a_merged_pair_is_not_didymos(seed: int) -> None:
+    """A region holding Dimorphos's place with more than both bodies' areas leaves Didymos to another extended
+    region only within the orbit's reach of it: a star pair 100 px away, off a place known to 90 px, is not Didymos."""
+    scene, prediction = _small_pair_and_two_stars_far_off(seed)
+    t = run_trial(scene, seed, prediction)
+    _assert_found(t, 0)
+
+
+def test_bench_frame_with_a_star_pair_far_off_a_small_merged_pair() -> None:
+    """Bench seed 52 frame 242 (a seed first run after the rule was written): Didymos, 5.7 px, is found."""
+    _assert_found(_bench_trial(52, 242), 0)
