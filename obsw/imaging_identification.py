@@ -17,8 +17,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   Dimorphos's predicted place with more than both bodies' expected areas, another extended candidate off the place
   within the orbit's reach of the place and of that candidate, of Didymos's size and with at least half its light
   (``_beside_ejecta``: ejecta leave Dimorphos, so a fan of them brighter than a crescent at high phase holds the
-  place, and Didymos is within the orbit's radius of the Dimorphos the fan holds). When it need not be, shape
-  cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
+  place, and Didymos is within the orbit's radius of the Dimorphos the fan holds); when Didymos may be partly out of
+  the image, an extended candidate at the border with fewer pixels than its expected area, brighter over as many
+  pixels as it shows (``_cut_by_the_edge``: beyond the border its pixels are unseen, not dark). When it need not
+  be, shape cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
   likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
   first when Didymos may be resolved (a star never is); without a prediction, the largest. When the blob so chosen
   is a point source, that choice comes with its probability (``Identification.didymos_probability``): its odds
@@ -563,6 +565,24 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     return blobs[best], 1.0
 
 
+def _cut_by_the_edge(blobs: list[Blob], best: int, n_pixels: int, regions: Regions, cfg: ImagingConfig) -> int:
+    """The index of Didymos when it may be partly out of the image: an extended candidate at the image's border with
+    fewer pixels than Didymos's expected area ``n_pixels``, brighter than ``best`` over as many pixels as it has; else
+    ``best``. Beyond the border a body's pixels are unseen, not dark, so its light in the expected area undercounts
+    it; over an equal count the lit surface is brighter than dust (a fan of ejecta holding as much light in the
+    expected area as a crescent cut by the border), and a body seen whole has brighter pixels than a smaller one of
+    like albedo."""
+    b = blobs[best]
+    better = []
+    for i, c in enumerate(blobs):
+        if i == best or not c.touches_edge or c.area_px >= n_pixels or _point_source(regions, c, cfg):
+            continue
+        own, theirs = apertures_dn8(regions, [c, b], c.area_px)
+        if own > theirs:
+            better.append((own, c.area_px, -c.label, i))
+    return max(better)[3] if better else best
+
+
 def _placed(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cfg: ImagingConfig,
             place: _Place | None) -> bool:
     """Whether ``_best_didymos`` chooses among ``blobs`` by their distance from Dimorphos's place (``_likeliest``)
@@ -1100,6 +1120,11 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         # Dimorphos is expected, Didymos out of the image
         return Identification(None, _brightest_surface_at(regions, didymos, cands, exp, next_label, place,
                                                           cfg))
+    if place is not None and exp is not None and regions is not None \
+            and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg) \
+            and _didymos_may_be_out(place, exp, cfg.binned_size_px):
+        # a lit surface of Didymos's size chosen, and Didymos may be cut by the border: a part of it there, brighter
+        didymos = likely[_cut_by_the_edge(likely, likely.index(didymos), round(exp.didymos_area), regions, cfg)]
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
         # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
         cands, likely, didymos, next_label = _split(regions, didymos, cands, likely, exp, prev_did, prev_dim, cfg,
@@ -1225,10 +1250,13 @@ def _brightest_surface_at(regions: Regions | None, chosen: Blob, cands: list[Blo
     area and at most its largest, not at the image's edge, whichever is brightest by mean (ties: the chosen). A lit
     surface is brighter than the dust around it (``trimmed``'s rule), and a plume seen past a crescent's dark limb is
     a region of its own: the chosen blob, holding the most light, may be the plume. A region at the edge may be the
-    limb of Didymos beyond it, as bright as any surface, and within a place known to tens of px."""
+    limb of Didymos beyond it, as bright as any surface, and within a place known to tens of px. Dimorphos's centroid
+    is within the place's radius: when the chosen blob's surface is not (a brighter piece of Didymos's limb at the
+    edge, reaching towards the place), any such candidate is taken before it."""
     best = _dimorphos_surface(regions, chosen, exp, next_label, place, cfg)
     if regions is None:
         return best
+    at_place = _distance(best.region_centroid_col_row, place.col_row) <= place.radius_px
     n = exp.dimorphos_area
     for c in cands:
         if c is chosen or c.touches_edge or 4 * c.area_px < n or c.area_px > exp.dimorphos_area_max \
@@ -1236,8 +1264,8 @@ def _brightest_surface_at(regions: Regions | None, chosen: Blob, cands: list[Blo
             continue
         next_label = regions.free_label(next_label)
         surface = _dimorphos_surface(regions, c, exp, next_label, place, cfg)
-        if surface.mean_dn8 > best.mean_dn8:
-            best = surface
+        if not at_place or surface.mean_dn8 > best.mean_dn8:
+            best, at_place = surface, True
     return best
 
 

@@ -1145,3 +1145,38 @@ def test_a_star_pair_beyond_the_orbit_s_reach_of_a_merged_pair_is_not_didymos(se
 def test_bench_frame_with_a_star_pair_far_off_a_small_merged_pair() -> None:
     """Bench seed 52 frame 242 (a seed first run after the rule was written): Didymos, 5.7 px, is found."""
     _assert_found(_bench_trial(52, 242), 0)
+
+
+@pytest.mark.parametrize(("brightness", "half_angle_deg"), [(1.0, 60.2), (1.5, 60.2), (2.0, 60.2), (1.0, 45.0),
+                                                           (1.5, 75.0)])
+def test_a_crescent_cut_by_the_border_is_didymos_not_a_fan_of_as_much_light(brightness: float,
+                                                                          half_angle_deg: float) -> None:
+    """Bench seed 56 frame 210 (first run after the chain was written), its fan brighter or wider: Didymos's crescent
+    at 115 deg of phase, two thirds of it beyond the border, holds as much light in Didymos's expected area as
+    Dimorphos's fan of ejecta, whose region is many times larger; over as many pixels as the crescent shows, its
+    surface is the brighter: the fan is never reported as Didymos (it was, 299 px off), the crescent is, unless
+    the fan's region has no lit surface of Didymos's size (Didymos then taken to be out of the image, the fan
+    Dimorphos's dust: not reported, as it need not be with two thirds of it out)."""
+    scene, prediction = _bench_scene(56, 210)
+    assert scene.plume is not None
+    scene = replace(scene, plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * brightness,
+                                         half_angle_deg=half_angle_deg))
+    t = run_trial(scene, 210, prediction)
+    assert t.frame.truth[0].touches_edge
+    assert t.frame.truth[0].off_frame_px > t.frame.truth[0].lit_px / 2
+    assert t.didymos.truth_index in (0, None)
+    if t.didymos.truth_index == 0:
+        assert t.didymos.opencv_px is not None and t.didymos.opencv_px <= 1e-9
+    assert t.dimorphos.truth_index == 1
+
+
+@pytest.mark.parametrize("dimorphos_radiance", [0.7, 0.85, 1.0, 1.15])
+def test_with_didymos_out_a_piece_of_its_limb_off_the_place_is_not_dimorphos(dimorphos_radiance: float) -> None:
+    """Bench seed 54 frame 90 (first run after the chain was written), Dimorphos dimmer or brighter: Didymos, 179 px
+    at 38 deg of phase, its centre beyond the left edge, is taken to be out of the image (no lit surface of its size
+    in one region); Dimorphos, 36 px, is the surface at its place known to 90 px, not a brighter piece of Didymos's
+    limb at the edge reaching towards it, whose centroid lies beyond the place's radius (reported, 215 px off)."""
+    scene, prediction = _bench_scene(54, 90)
+    did, dim = scene.bodies
+    scene = replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)))
+    _assert_found(run_trial(scene, 90, prediction), 1)
