@@ -1112,18 +1112,18 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
     didymos, probability = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
     taken = didymos
     placed = _placed(likely, exp, regions, cfg, place)
+    may_be_out = place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
-    if place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px) \
+    if may_be_out and place is not None and exp is not None \
             and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max) \
             and _surface_area(regions, didymos, exp) < math.sqrt(exp.didymos_area * exp.dimorphos_area):
         # no blob with a lit surface of Didymos's size: a Dimorphos-sized surface (with the ejecta it holds) where
         # Dimorphos is expected, Didymos out of the image
         return Identification(None, _brightest_surface_at(regions, didymos, cands, exp, next_label, place,
                                                           cfg))
-    if place is not None and exp is not None and regions is not None \
-            and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg) \
-            and _didymos_may_be_out(place, exp, cfg.binned_size_px):
-        # a lit surface of Didymos's size chosen, and Didymos may be cut by the border: a part of it there, brighter
+    if may_be_out and exp is not None and regions is not None \
+            and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
+        # Didymos may be cut by the border and was not taken to be out of the image: a part of it there, brighter
         didymos = likely[_cut_by_the_edge(likely, likely.index(didymos), round(exp.didymos_area), regions, cfg)]
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
         # larger than both bodies can be: ejecta merged with it; its brightest part of both bodies' size replaces it
