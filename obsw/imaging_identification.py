@@ -1191,9 +1191,13 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions, probability)
                 break
     if dimorphos is None and place is not None and exp is not None and regions is not None \
-            and regions.linear8 is not None and didymos.trimmed_from:
-        # Dimorphos merged with Didymos's region by the plume or the blur, below every level the cuts above tried
-        root = next((b for b in blobs if b.label == didymos.trimmed_from), didymos)
+            and regions.linear8 is not None \
+            and (didymos.trimmed_from or didymos.area_px > exp.didymos_area + exp.dimorphos_area
+                 and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)):
+        # Dimorphos merged with Didymos's region by the plume or the blur, below every level the cuts above tried:
+        # a region cut for Didymos, or one left whole with room for both bodies when Didymos is resolved (an
+        # unresolved one's blur and noise can part into peaks of their own)
+        root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
         dimorphos, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions, probability,
                                                      next_label)
         deblended = dimorphos is not None
@@ -1208,13 +1212,13 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
 def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expected, place: _Place,
                          cfg: ImagingConfig, regions: Regions, didymos_probability: float, next_label: int
                          ) -> tuple[Blob | None, int]:
-    """Dimorphos among the objects of the region Didymos was cut out of (``Regions.deblended``), and the next free
-    label: its own peak parts from Didymos's at some level. Candidates are the objects no smaller than Dimorphos can
-    be (its expected area over the largest radius factor squared: the part of a Dimorphos in front of Didymos's limb
-    brighter than the limb parts from it too, its centroid off the body's) nor larger, off Didymos's disc and, cut to
-    their surface, where the lit part is expected (``_lit_agrees``: a piece of Didymos's limb or of the plume parts
-    from the rest too); chosen among the frame's other candidates, so that a point-like one is weighed against all
-    the frame's stars."""
+    """Dimorphos among the objects of ``root``, the region Didymos was cut out of or Didymos's own
+    (``Regions.deblended``), and the next free label: its own peak parts from Didymos's at some level. Candidates
+    are the objects no smaller than Dimorphos can be (its expected area over the largest radius factor squared: the
+    part of a Dimorphos in front of Didymos's limb brighter than the limb parts from it too, its centroid off the
+    body's) nor larger, off Didymos's disc and, cut to their surface, where the lit part is expected
+    (``_lit_agrees``: a piece of Didymos's limb or of the plume parts from the rest too); chosen among the frame's
+    other candidates, so that a point-like one is weighed against all the frame's stars."""
     centre = _didymos_centre(didymos, exp)
     smallest = max(float(cfg.min_body_area_px), exp.dimorphos_area / exp.radius_factor_max ** 2)
     next_label = regions.free_label(next_label)

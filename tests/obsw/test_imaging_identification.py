@@ -108,6 +108,42 @@ def test_dimorphos_merged_with_didymos_below_every_cut_is_deblended(seed: int, k
         is None
 
 
+@pytest.mark.parametrize(("seed", "k"), [(59, 112), (43, 54), (1, 213), (2, 5), (31, 262), (53, 6)])
+def test_dimorphos_in_a_whole_region_with_room_for_both_bodies_is_deblended(seed: int, k: int) -> None:
+    """Dimorphos 3-21 px across in the region of a resolved Didymos left whole (not cut: no part of it taken for
+    Dimorphos), the region holding more than both bodies' areas: deblended, its own peak is found (bench frame 59/112,
+    a seed first run before the rule, and frames of earlier seeds it also found); with no part significant enough to
+    deblend, it is not."""
+    _assert_found(_bench_trial(seed, k), 1)
+    assert _bench_trial(seed, k, CFG.model_copy(update={"deblend_min_flux_fraction": 0.999})).detections.dimorphos \
+        is None
+
+
+@pytest.mark.parametrize(("dimorphos_radiance", "plume_brightness"), [(0.8, 1.0), (0.9, 1.0), (1.1, 1.0),
+                                                                      (1.25, 1.0), (1.0, 0.85), (1.0, 1.15)])
+def test_a_small_dimorphos_in_didymos_s_plume_is_deblended(dimorphos_radiance: float,
+                                                          plume_brightness: float) -> None:
+    """Bench seed 59 frame 112, Dimorphos or the plume dimmer or brighter: Dimorphos, 3.1 px, 12 px from a 15 px
+    Didymos at 66 deg of phase, inside Didymos's region with the plume (249 px, more than both bodies' areas, too
+    small to cut), is found (none was reported)."""
+    scene, prediction = _bench_scene(59, 112)
+    did, dim = scene.bodies
+    assert scene.plume is not None
+    scene = replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)),
+                    plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * plume_brightness))
+    _assert_found(run_trial(scene, 112, prediction), 1)
+
+
+@pytest.mark.parametrize(("seed", "k"), [(43, 127), (2, 137), (45, 170), (45, 260)])
+def test_an_unresolved_didymos_region_is_not_deblended_into_dimorphos(seed: int, k: int) -> None:
+    """A Didymos 1.7-2.7 px across, under the size that must be resolved, its region larger than both bodies'
+    expected areas by its blur: its region is not deblended, so no part of its own image is reported as Dimorphos
+    (bench frames where deblending it did, Dimorphos sub-pixel beside it)."""
+    t = _bench_trial(seed, k)
+    assert t.didymos.truth_index == 0
+    assert t.dimorphos.truth_index != 0
+
+
 def _peaks_image(separation: float, ratio: float, sigma: float, bridge: float) -> np.ndarray:
     """An 8-bit image (64 x 96) of two Gaussian peaks along row 32, the second ``ratio`` times the first's 200 and
     ``separation`` px to its right, over a faint bar between them (``bridge``, 8-bit) that joins them above 10."""
