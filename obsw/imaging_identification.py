@@ -465,7 +465,7 @@ def _distance(a: tuple[float, float], b: tuple[float, float]) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
-def _box_distance(blob: Blob, point: tuple[float, float]) -> float:
+def box_distance(blob: Blob, point: tuple[float, float]) -> float:
     """Distance from a point to a blob's bounding box (0 inside)."""
     x, y, w, h = blob.bbox_col_row_w_h
     dx = max(x - point[0], 0.0, point[0] - (x + w - 1))
@@ -604,14 +604,14 @@ def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expec
     but a place known to tens of px would let a region far beyond the orbit (a pair of stars) pass for Didymos."""
     b = blobs[best]
     both = exp.didymos_area + exp.dimorphos_area
-    if b.area_px <= both or _box_distance(b, place.col_row) > place.radius_px:
+    if b.area_px <= both or box_distance(b, place.col_row) > place.radius_px:
         return best
     reach = place.radius_px + exp.orbit_radius_max + exp.didymos_radius_max
     gap = exp.orbit_radius_max + exp.didymos_radius_max + exp.dimorphos_radius_max + psf_reach_px(cfg)
     smallest = exp.didymos_area / exp.radius_factor_max ** 2
     beside = [i for i, c in enumerate(blobs)
               if i != best and smallest <= c.area_px <= exp.didymos_area_max and lights[i] >= 0.5 * lights[best]
-              and place.radius_px < _box_distance(c, place.col_row) <= reach and _box_gap_px(b, c) <= gap
+              and place.radius_px < box_distance(c, place.col_row) <= reach and _box_gap_px(b, c) <= gap
               and not _point_source(regions, c, cfg)]
     return max(beside, key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label)) if beside else best
 
@@ -835,7 +835,7 @@ def _dimorphos_gate(didymos: Blob, exp: Expected | None, cfg: ImagingConfig) -> 
 def _near(blob: Blob, point: tuple[float, float], limit: float, oversized: bool) -> bool:
     """Whether a blob is within ``limit`` of a point: its centroid, or its box for a blob holding ejecta (Dimorphos,
     their source, is at one end of it)."""
-    return (_box_distance(blob, point) if oversized else _distance(blob.region_centroid_col_row, point)) <= limit
+    return (box_distance(blob, point) if oversized else _distance(blob.region_centroid_col_row, point)) <= limit
 
 
 def aperture_dn8(regions: Regions, blob: Blob, n_pixels: int) -> float:
@@ -1106,7 +1106,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
     if place is not None and exp is not None:
         # Didymos is within the orbit's radius of Dimorphos, wherever the trajectory puts it
         reach = place.radius_px + exp.orbit_radius_max + exp.didymos_radius_max
-        likely = [c for c in cands if _box_distance(c, place.col_row) <= reach]
+        likely = [c for c in cands if box_distance(c, place.col_row) <= reach]
         if not likely:
             return Identification(None, None)
     didymos, probability = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)

@@ -46,7 +46,7 @@ from numba import njit
 
 from obsw.config import ImagingConfig
 from obsw.imaging_geometry import FramePrediction, focal_length_px, phase_angle_deg, phase_offset_px
-from obsw.imaging_identification import Blob
+from obsw.imaging_identification import Blob, box_distance, psf_reach_px
 
 
 @dataclass(frozen=True, slots=True)
@@ -258,8 +258,10 @@ def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePredicti
     """``limb_corrected`` where the whole limb is not fitted (a phase beyond ``limb_fit_max_phase_deg``, or a place
     too loose to search): the centre of the lit limb (``lit_limb_centre``) of a radius within ``radii``, searched
     within twice the largest about the cut, replaces the cut's centroid when it steps clearly, lies within
-    ``allowed`` of the place, and is more than ``lit_limb_min_disagreement_radii`` predicted radii off the cut; with
-    the samples the fit took."""
+    ``allowed`` of the place, is more than ``lit_limb_min_disagreement_radii`` predicted radii off the cut, and
+    touches the cut (the largest disc about its centre within the point-spread function's reach of the cut's box:
+    the cut holds a part of the body or of a fan rising from its limb; a circle off it hugs another body's limb,
+    bench seed 64 frame 82); with the samples the fit took."""
     assert prediction.dimorphos_col_row is not None and prediction.dimorphos_radius_px is not None
     r_min, r_max = radii
     # only the direction of the lit centroid's offset counts: the Sun's in the image
@@ -270,6 +272,7 @@ def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePredicti
     if fit.score < cfg.limb_fit_min_contrast * fit.window_median \
             or math.dist(fit.col_row, prediction.dimorphos_col_row) > allowed \
             or math.dist(fit.col_row, blob.centroid_col_row) <= cfg.lit_limb_min_disagreement_radii \
-            * prediction.dimorphos_radius_px:
+            * prediction.dimorphos_radius_px \
+            or box_distance(blob, fit.col_row) > r_max + psf_reach_px(cfg):
         return blob, fit.samples
     return blob._replace(centroid_col_row=fit.col_row), fit.samples
