@@ -55,9 +55,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   When no candidate is Dimorphos and the trajectory puts it well within the orbit's radius (its uncertainty
   radius under half the orbit's), the part of Didymos's region within that radius of the place (``Regions.within``),
   trimmed the same way, is Dimorphos when it is off Didymos's disc: ejecta brighter than its surface merged them.
-  When still none is and Didymos was cut out of a larger region, that region is deblended (``Regions.deblended``,
-  SExtractor's multi-threshold deblending: at ``deblend_levels`` levels from the threshold to the peak, the parts
-  that split from one another, each holding at least ``deblend_min_flux_fraction`` of the region's light), and its
+  When still none is and Didymos was cut out of a larger region, or its own region, resolved, has room for both
+  bodies, that region is deblended (``Regions.deblended``, SExtractor's multi-threshold deblending: at
+  ``deblend_levels`` levels from the threshold to the peak, the parts that split from one another, each holding at
+  least ``deblend_min_flux_fraction`` of the region's light), and its
   objects no smaller than Dimorphos can be nor larger, off Didymos's disc and where its lit part is expected, are
   candidates among the others (``_deblended_dimorphos``): Dimorphos joined to Didymos by the plume or the blur below
   every level the cuts tried keeps its own peak. Such an object is no cut beside the body: its limb is not sought
@@ -78,7 +79,7 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   bright like a body (the light of its best-lit quarter of Dimorphos's expected area at least
   ``dimorphos_min_peak_fraction`` of Didymos's, times what the blur leaves of its narrower crescent's peak,
   ``_peak_kept_by_blur``; without a prediction, its peak) and not a piece of Didymos's thin
-  crescent (beside its box and on its disc). With its place known, only those whose centroid, as it would be
+  crescent (beside its box and wholly on its disc). With its place known, only those whose centroid, as it would be
   reported (cut to its surface), agrees with it (``_lit_agrees``) when any does: a star smeared beside a crescent
   merged with the plume, or the plume's core cut out of a fan beside a crescent, lies within the body's radius of the
   place, off its lit part's expected centroid. The one continuing the last pair's relative offset wins; else the one
@@ -517,13 +518,23 @@ def _box_gap_px(a: Blob, b: Blob) -> int:
 
 def _piece_of_crescent(blob: Blob, didymos: Blob, exp: Expected | None, cfg: ImagingConfig) -> bool:
     """Return whether ``blob`` may be a piece of Didymos's thin crescent broken off at the threshold: Didymos is
-    elongated, the blob lies within a few pixels of its box and, with expected sizes, on Didymos's disc: within its
-    largest radius of its centre (its region centroid moved back from the lit part by the phase offset)."""
+    elongated, the blob lies within a few pixels of its box and, with expected sizes, on Didymos's disc: its centroid
+    within its largest radius of its centre (its region centroid moved back from the lit part by the phase offset),
+    and its box within that radius and the point-spread function's reach."""
     if didymos.elongation < cfg.crescent_min_elongation or _box_gap_px(blob, didymos) > cfg.crescent_gap_px:
         return False
     if exp is None:
         return True
-    return _distance(blob.region_centroid_col_row, _didymos_centre(didymos, exp)) <= exp.didymos_radius_max
+    centre = _didymos_centre(didymos, exp)
+    if _distance(blob.region_centroid_col_row, centre) > exp.didymos_radius_max:
+        return False
+    # the whole piece, not its centroid alone, blurred no further than a point source's light: a region of Dimorphos
+    # and its plume reaching Didymos's crescent can have its centroid on Didymos's largest disc (bench seed 65 frame
+    # 236)
+    x, y, w, h = blob.bbox_col_row_w_h
+    farthest = math.hypot(max(abs(x - centre[0]), abs(x + w - 1 - centre[0])),
+                          max(abs(y - centre[1]), abs(y + h - 1 - centre[1])))
+    return farthest <= exp.didymos_radius_max + psf_reach_px(cfg)
 
 
 def _didymos_centre(didymos: Blob, exp: Expected) -> tuple[float, float]:

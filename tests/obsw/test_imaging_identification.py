@@ -144,6 +144,32 @@ def test_an_unresolved_didymos_region_is_not_deblended_into_dimorphos(seed: int,
     assert t.dimorphos.truth_index != 0
 
 
+@pytest.mark.parametrize(("plume_brightness", "dimorphos_radiance"), [(1.0, 1.0), (1.25, 1.0), (1.5, 1.0),
+                                                                      (1.0, 0.7), (1.0, 0.85), (1.0, 1.3)])
+def test_a_region_reaching_beyond_didymos_s_disc_is_no_piece_of_its_crescent(plume_brightness: float,
+                                                                           dimorphos_radiance: float) -> None:
+    """Bench seed 65 frame 236 (a seed first run after the chain was written), the plume or Dimorphos dimmer or
+    brighter: Dimorphos, 37 px at 116 deg of phase, and its plume make one region (9,673 px, twice Didymos's) whose
+    box comes within a few px of Didymos's crescent's and whose centroid lies within Didymos's largest radius of its
+    centre; it was taken for a piece of the crescent broken off at the threshold and Dimorphos was not reported. A
+    piece of the crescent lies on Didymos's disc whole, and this region reaches far beyond it: Dimorphos is found."""
+    scene, prediction = _bench_scene(65, 236)
+    did, dim = scene.bodies
+    assert scene.plume is not None
+    scene = replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)),
+                    plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * plume_brightness))
+    _assert_found(run_trial(scene, 236, prediction), 1)
+
+
+@pytest.mark.parametrize(("seed", "k"), [(3, 226), (47, 33)])
+def test_a_piece_of_an_unresolved_didymos_s_image_is_not_dimorphos(seed: int, k: int) -> None:
+    """A 1-1.2 px Didymos, its blurred image elongated by the noise, a piece of it broken off at the threshold: the
+    piece's box reaches beyond Didymos's largest disc by the blur alone and it stays a piece of Didymos, not reported
+    as Dimorphos (bench frames where a box test without the point-spread function's reach reported it)."""
+    t = _bench_trial(seed, k)
+    assert t.dimorphos.truth_index != 0
+
+
 def _peaks_image(separation: float, ratio: float, sigma: float, bridge: float) -> np.ndarray:
     """An 8-bit image (64 x 96) of two Gaussian peaks along row 32, the second ``ratio`` times the first's 200 and
     ``separation`` px to its right, over a faint bar between them (``bridge``, 8-bit) that joins them above 10."""
