@@ -19,7 +19,7 @@ anywhere) and the same noise: the identity of both bodies must not change.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import binary_dilation
@@ -39,6 +39,15 @@ MAX_SHAPE_RATIO = 1.5  # the on-board knowledge of the bodies' shapes (TargetKno
 MIN_SNR = 10.0
 NOISE_FLOOR_SIGMA = 5.0  # the noise floor of a threshold (ImagingConfig.noise_k_sigma)
 RANGE_ERROR = 0.1  # the prediction's range is off by up to this fraction (3 sigma of the early approach)
+
+
+def scaled(scene: Scene, plume_brightness: float = 1.0, dimorphos_radiance: float = 1.0) -> Scene:
+    """The scene with its plume (which it must have) and Dimorphos this many times as bright: a bench frame's
+    variants."""
+    assert scene.plume is not None
+    did, dim = scene.bodies
+    return replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)),
+                   plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * plume_brightness))
 
 
 def prediction_for(scene: Scene, rng: np.random.Generator, place_sigma_px: float | None) -> FramePrediction:

@@ -23,6 +23,7 @@ from tests.obsw.imaging_trials import (
     prediction_for,
     reference_blob,
     run_trial,
+    scaled,
     swallowed,
 )
 from tests.obsw.opencv_reference import reference_pipeline
@@ -127,10 +128,7 @@ def test_a_small_dimorphos_in_didymos_s_plume_is_deblended(dimorphos_radiance: f
     Didymos at 66 deg of phase, inside Didymos's region with the plume (249 px, more than both bodies' areas, too
     small to cut), is found (none was reported)."""
     scene, prediction = _bench_scene(59, 112)
-    did, dim = scene.bodies
-    assert scene.plume is not None
-    scene = replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)),
-                    plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * plume_brightness))
+    scene = scaled(scene, plume_brightness, dimorphos_radiance)
     _assert_found(run_trial(scene, 112, prediction), 1)
 
 
@@ -154,10 +152,7 @@ def test_a_region_reaching_beyond_didymos_s_disc_is_no_piece_of_its_crescent(plu
     centre; it was taken for a piece of the crescent broken off at the threshold and Dimorphos was not reported. A
     piece of the crescent lies on Didymos's disc whole, and this region reaches far beyond it: Dimorphos is found."""
     scene, prediction = _bench_scene(65, 236)
-    did, dim = scene.bodies
-    assert scene.plume is not None
-    scene = replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)),
-                    plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * plume_brightness))
+    scene = scaled(scene, plume_brightness, dimorphos_radiance)
     _assert_found(run_trial(scene, 236, prediction), 1)
 
 

@@ -14,7 +14,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.ndimage import gaussian_filter
 from tests.obsw.frame_generator import Ellipsoid, Plume, Scene, random_scene, render
-from tests.obsw.imaging_trials import PAPER_LIMIT_PX, ground_map, prediction_for
+from tests.obsw.imaging_trials import PAPER_LIMIT_PX, ground_map, prediction_for, scaled
 
 from obsw.config import ImagingConfig
 from obsw.imaging import Detections, FramePrediction, process_frame
@@ -364,10 +364,7 @@ def test_the_lit_limb_s_circle_must_touch_the_cut_it_replaces(plume_brightness: 
     rng = np.random.default_rng([64, 82])
     scene = random_scene(rng)
     prediction = prediction_for(scene, rng, 3.0 if rng.random() < 0.5 else 30.0)
-    did, dim = scene.bodies
-    assert scene.plume is not None
-    scene = replace(scene, bodies=(did, replace(dim, radiance_dn=dim.radiance_dn * dimorphos_radiance)),
-                    plume=replace(scene.plume, brightness_dn=scene.plume.brightness_dn * plume_brightness))
+    scene = scaled(scene, plume_brightness, dimorphos_radiance)
     frame = render(scene, np.random.default_rng(82))
     det = process_frame(frame.pixels, CFG, bad_pixels=ground_map(scene), prediction=prediction)
     assert det.dimorphos is not None
