@@ -312,6 +312,11 @@ def _must_be_resolved(radius_min_px: float, regions: Regions | None, cfg: Imagin
         and radius_min_px ** 2 / 4.0 >= cfg.point_source_sigma_max_px ** 2
 
 
+def _didymos_resolved(exp: Expected, regions: Regions | None, cfg: ImagingConfig) -> bool:
+    """Whether Didymos must be resolved at the smallest apparent size the prediction allows (``_must_be_resolved``)."""
+    return _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
+
+
 def psf_reach_px(cfg: ImagingConfig) -> float:
     """How far from a point source its light stays above the threshold at most, px: a Gaussian of sigma s
     (``point_source_sigma_max_px``) with a peak of at most 2^16 times the threshold's level stays above it within
@@ -562,7 +567,7 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
         return _largest(blobs), 1.0
     n = round(exp.didymos_area)
     lights = apertures_dn8(regions, blobs, n)
-    resolved = _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
+    resolved = _didymos_resolved(exp, regions, cfg)
     if place is not None and stars is not None:
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
         return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg, stars)
@@ -599,7 +604,7 @@ def _placed(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cf
     """Whether ``_best_didymos`` chooses among ``blobs`` by their distance from Dimorphos's place (``_likeliest``)
     and there is a choice: Didymos need not be resolved, the place is known, and more than one blob."""
     return place is not None and exp is not None and regions is not None and len(blobs) > 1 \
-        and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
+        and not _didymos_resolved(exp, regions, cfg)
 
 
 def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expected, place: _Place,
@@ -767,7 +772,7 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
     (``_best_didymos``); ``cands`` are all candidates, the frame's stars among them."""
     stars = None
     if place is not None and exp is not None and regions is not None \
-            and not _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
+            and not _didymos_resolved(exp, regions, cfg):
         stars = _star_field(cands, round(exp.didymos_area), regions, cfg)
     didymos, probability = _best_didymos(likely, exp, regions, cfg, place, stars)
     if prev_did is not None and prev_dim is not None:
@@ -1124,6 +1129,8 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
     taken = didymos
     placed = _placed(likely, exp, regions, cfg, place)
     may_be_out = place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px)
+    # the smallest Didymos the prediction allows is resolved: Expected's Didymos sizes stay as predicted below
+    resolved = exp is not None and _didymos_resolved(exp, regions, cfg)
     # the surface is counted last: it sorts the blob's pixels, the other tests are a few comparisons
     if may_be_out and place is not None and exp is not None \
             and _near(didymos, place.col_row, place.radius_px, didymos.area_px > exp.dimorphos_area_max) \
@@ -1132,8 +1139,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         # Dimorphos is expected, Didymos out of the image
         return Identification(None, _brightest_surface_at(regions, didymos, cands, exp, next_label, place,
                                                           cfg))
-    if may_be_out and exp is not None and regions is not None \
-            and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
+    if may_be_out and exp is not None and regions is not None and resolved:
         # Didymos may be cut by the border and was not taken to be out of the image: a part of it there, brighter
         didymos = likely[_cut_by_the_edge(likely, likely.index(didymos), round(exp.didymos_area), regions, cfg)]
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area_max + exp.dimorphos_area_max:
@@ -1164,7 +1170,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             didymos = max(cut, key=lambda b: (b.area_px, -b.label))
             next_label = regions.free_label(next_label)
     if exp is not None and regions is not None and didymos.area_px > exp.didymos_area + exp.dimorphos_area \
-            and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg):
+            and resolved:
         # still larger than Didymos alone: a fan of dust fainter than its surface may be merged with it
         cut = _without_dust(regions, didymos, exp, cfg, regions.free_label(next_label))
         if cut:
@@ -1203,8 +1209,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
                 break
     if dimorphos is None and place is not None and exp is not None and regions is not None \
             and regions.linear8 is not None \
-            and (didymos.trimmed_from or didymos.area_px > exp.didymos_area + exp.dimorphos_area
-                 and _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)):
+            and (didymos.trimmed_from or didymos.area_px > exp.didymos_area + exp.dimorphos_area and resolved):
         # Dimorphos merged with Didymos's region by the plume or the blur, below every level the cuts above tried:
         # a region cut for Didymos, or one left whole with room for both bodies when Didymos is resolved (an
         # unresolved one's blur and noise can part into peaks of their own)
