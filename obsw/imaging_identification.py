@@ -1232,15 +1232,28 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
     (``Regions.deblended``), and the next free label: its own peak parts from Didymos's at some level. Candidates
     are the objects no smaller than Dimorphos can be (its expected area over the largest radius factor squared: the
     part of a Dimorphos in front of Didymos's limb brighter than the limb parts from it too, its centroid off the
-    body's) nor larger, off Didymos's disc and, cut to their surface, where the lit part is expected
+    body's) nor larger (a larger one, both bodies resolved, its brightest pixels of Dimorphos's expected area), off Didymos's disc and,
+    cut to their surface, where the lit part is expected
     (``_lit_agrees``: a piece of Didymos's limb or of the plume parts from the rest too); chosen among the frame's
     other candidates, so that a point-like one is weighed against all the frame's stars."""
     centre = _didymos_centre(didymos, exp)
     smallest = max(float(cfg.min_body_area_px), exp.dimorphos_area / exp.radius_factor_max ** 2)
     next_label = regions.free_label(next_label)
-    objects = [o for o in regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label)
-               if smallest <= o.area_px <= exp.dimorphos_area_max
-               and _distance(o.region_centroid_col_row, centre) > exp.didymos_radius]
+    # an object parts at its widest outline: a small Dimorphos at the root of its plume parts with the root around
+    # it, so an object larger than Dimorphos can be is taken by its brightest pixels of its expected area when both
+    # bodies are resolved at their predicted sizes (an unresolved Didymos's blur and noise part into objects of their
+    # own, and an unresolved Dimorphos's expected area is any bright clump's peak)
+    cut_larger = _didymos_resolved(exp, regions, cfg) and _must_be_resolved(exp.dimorphos_radius, regions, cfg)
+    objects = []
+    for o in regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label):
+        if _distance(o.region_centroid_col_row, centre) <= exp.didymos_radius:
+            continue
+        next_label = regions.free_label(next_label)
+        for p in regions.parts(o, round(exp.dimorphos_area), next_label) \
+                if cut_larger and o.area_px > exp.dimorphos_area_max else [o]:
+            if smallest <= p.area_px <= exp.dimorphos_area_max \
+                    and _distance(p.region_centroid_col_row, centre) > exp.didymos_radius:
+                objects.append(p)
     next_label = regions.free_label(next_label)
     agree = []
     for o in objects:

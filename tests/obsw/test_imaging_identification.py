@@ -132,6 +132,19 @@ def test_a_small_dimorphos_in_didymos_s_plume_is_deblended(dimorphos_radiance: f
     _assert_found(run_trial(scene, 112, prediction), 1)
 
 
+@pytest.mark.parametrize(("plume_brightness", "dimorphos_radiance"), [(1.0, 1.0), (1.25, 1.0), (0.8, 1.0),
+                                                                      (1.0, 0.7), (1.0, 0.85), (1.0, 1.3)])
+def test_a_small_dimorphos_at_its_plume_s_root_is_its_object_s_brightest_part(plume_brightness: float,
+                                                                            dimorphos_radiance: float) -> None:
+    """Bench seed 67 frame 209 (a seed first run after the deblending was written), the plume or Dimorphos dimmer or
+    brighter: Dimorphos, 3 px at the root of its plume, 21 px from a 15 px Didymos, in one region with both; deblended,
+    Dimorphos parts from Didymos with the plume's root around it, an object larger than Dimorphos can be, and none
+    was reported. The object is taken by its brightest pixels of Dimorphos's expected area: Dimorphos is found."""
+    scene, prediction = _bench_scene(67, 209)
+    scene = scaled(scene, plume_brightness, dimorphos_radiance)
+    _assert_found(run_trial(scene, 209, prediction), 1)
+
+
 @pytest.mark.parametrize(("seed", "k"), [(43, 127), (2, 137), (45, 170), (45, 260)])
 def test_an_unresolved_didymos_region_is_not_deblended_into_dimorphos(seed: int, k: int) -> None:
     """A Didymos 1.7-2.7 px across, under the size that must be resolved, its region larger than both bodies'
