@@ -108,6 +108,15 @@ from obsw.imaging_geometry import LIT_CENTROID_FACTOR, FramePrediction, phase_of
 from obsw.imaging_labelling import Components, connected_components
 
 
+class Without(NamedTuple):
+    """A cut: the region without one of the parts of its brightest ``n_pixels`` (``Regions.parts``), the part
+    holding the pixel (``col``, ``row``)."""
+
+    n_pixels: int
+    col: int
+    row: int
+
+
 class Blob(NamedTuple):  # a named tuple: near C/A a frame describes hundreds, at a third of a frozen dataclass's cost
     """One 8-connected region of the binarised 512x512 image (or the brightest part of one, ``trimmed_from``);
     immutable (a changed copy: ``blob._replace``)."""
@@ -121,11 +130,11 @@ class Blob(NamedTuple):  # a named tuple: near C/A a frame describes hundreds, a
     elongation: float  # major/minor axis ratio from the second central moments (1 for a disc)
     threshold_dn8: int  # the region is the 8-connected set of pixels above this 8-bit value
     region_centroid_col_row: tuple[float, float]  # binary centroid of the region's pixels, px at binned scale
-    trimmed_from: int = 0  # label of the region this is the brightest part of (0: a region of the binarised image)
+    trimmed_from: int = 0  # label of the region this was cut from (``cuts``; 0: a region of the binarised image)
     touches_edge: bool = False  # the region reaches the image's border (a body there may be cut)
-    # the cuts that made it from its region, in order: a pixel count (its brightest pixels: ``Regions.parts``) or a
-    # disc (col, row, radius px: its pixels within it, ``Regions.within``)
-    cuts: tuple[int | tuple[float, float, float], ...] = ()
+    # the cuts that made it from its region, in order: a pixel count (its brightest pixels: ``Regions.parts``), a
+    # disc (col, row, radius px: its pixels within it, ``Regions.within``) or a part taken out (``Without``)
+    cuts: tuple[int | tuple[float, float, float] | Without, ...] = ()
 
     @property
     def diameter_px(self) -> int:
@@ -150,7 +159,7 @@ class Regions:
     linear8: np.ndarray | None = None  # the raw value each 8-bit code stands for (``light_spread_px2``)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
-              image_size: int | None = None, cuts: tuple[int | tuple[float, float, float], ...] = (),
+              image_size: int | None = None, cuts: tuple[int | tuple[float, float, float] | Without, ...] = (),
               min_area_px: int = 1) -> list[Blob]:
         """The Blob records of the components of at least ``min_area_px`` pixels (coordinates shifted by
         ``offset_col_row``); labels number every component."""
@@ -278,7 +287,7 @@ class Regions:
         return sub, tagged.reshape(-1)[sub.pixel_index], left, top, w
 
     def _cut(self, blob: Blob, sel: np.ndarray, threshold_dn8: int, first_label: int,
-             cut: int | tuple[float, float, float]) -> list[Blob]:
+             cut: int | tuple[float, float, float] | Without) -> list[Blob]:
         """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order) of a blob,
         labelled from ``first_label``, their pixels kept by label."""
         sub, flat_pos, left, top, w = self._connected(sel, sel)
@@ -1214,9 +1223,13 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         # a region cut for Didymos, or one left whole with room for both bodies when Didymos is resolved (an
         # unresolved one's blur and noise can part into peaks of their own)
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
-        dimorphos, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions, probability,
-                                                     next_label)
+        dimorphos, source, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions,
+                                                             probability, next_label)
         deblended = dimorphos is not None
+        if source is not None and root is didymos:
+            # Didymos's own region held Dimorphos: Didymos is the region without the object Dimorphos is or was cut
+            # from, its centroid no longer pulled by Dimorphos or the dust around it (continuity measures from it)
+            didymos, next_label = _without(regions, root, source, exp, cfg, place, next_label)
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
@@ -1227,15 +1240,15 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
 
 def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expected, place: _Place,
                          cfg: ImagingConfig, regions: Regions, didymos_probability: float, next_label: int
-                         ) -> tuple[Blob | None, int]:
+                         ) -> tuple[Blob | None, Blob | None, int]:
     """Dimorphos among the objects of ``root``, the region Didymos was cut out of or Didymos's own
-    (``Regions.deblended``), and the next free label: its own peak parts from Didymos's at some level. Candidates
-    are the objects no smaller than Dimorphos can be (its expected area over the largest radius factor squared: the
-    part of a Dimorphos in front of Didymos's limb brighter than the limb parts from it too, its centroid off the
-    body's) nor larger (a larger one, both bodies resolved, its brightest pixels of Dimorphos's expected area), off Didymos's disc and,
-    cut to their surface, where the lit part is expected
-    (``_lit_agrees``: a piece of Didymos's limb or of the plume parts from the rest too); chosen among the frame's
-    other candidates, so that a point-like one is weighed against all the frame's stars."""
+    (``Regions.deblended``), the object it is or was cut from, and the next free label: its own peak parts from
+    Didymos's at some level. Candidates are the objects no smaller than Dimorphos can be (its expected area over
+    the largest radius factor squared: the part of a Dimorphos in front of Didymos's limb brighter than the limb
+    parts from it too, its centroid off the body's) nor larger (a larger one, both bodies resolved, its brightest
+    pixels of Dimorphos's expected area), off Didymos's disc and, cut to their surface, where the lit part is
+    expected (``_lit_agrees``: a piece of Didymos's limb or of the plume parts from the rest too); chosen among
+    the frame's other candidates, so that a point-like one is weighed against all the frame's stars."""
     centre = _didymos_centre(didymos, exp)
     smallest = max(float(cfg.min_body_area_px), exp.dimorphos_area / exp.radius_factor_max ** 2)
     next_label = regions.free_label(next_label)
@@ -1244,7 +1257,7 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
     # bodies are resolved at their predicted sizes (an unresolved Didymos's blur and noise part into objects of their
     # own, and an unresolved Dimorphos's expected area is any bright clump's peak)
     cut_larger = _didymos_resolved(exp, regions, cfg) and _must_be_resolved(exp.dimorphos_radius, regions, cfg)
-    objects = []
+    objects: list[tuple[Blob, Blob]] = []  # each candidate and the object it is or was cut from
     for o in regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label):
         if _distance(o.region_centroid_col_row, centre) <= exp.didymos_radius:
             continue
@@ -1253,18 +1266,35 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
                 if cut_larger and o.area_px > exp.dimorphos_area_max else [o]:
             if smallest <= p.area_px <= exp.dimorphos_area_max \
                     and _distance(p.region_centroid_col_row, centre) > exp.didymos_radius:
-                objects.append(p)
+                objects.append((p, o))
     next_label = regions.free_label(next_label)
     agree = []
-    for o in objects:
+    for o, source in objects:
         if _lit_agrees(_dimorphos_surface(regions, o, exp, next_label, place, cfg), place):
-            agree.append(o)
+            agree.append((o, source))
         next_label = regions.free_label(next_label)
     if not agree:
-        return None, next_label
-    chosen = _choose_dimorphos(cands + agree, didymos, exp, place, None, None, cfg, regions, didymos_probability)
+        return None, None, next_label
+    chosen = _choose_dimorphos(cands + [o for o, _ in agree], didymos, exp, place, None, None, cfg, regions,
+                               didymos_probability)
     # the others were just found wanting without the objects: only an object is taken here
-    return (chosen if any(chosen is o for o in agree) else None), next_label
+    source = next((src for o, src in agree if o is chosen), None)
+    return (None, None, next_label) if source is None else (chosen, source, next_label)
+
+
+def _without(regions: Regions, region: Blob, part: Blob, exp: Expected, cfg: ImagingConfig, place: _Place,
+             next_label: int) -> tuple[Blob, int]:
+    """A region without the pixels of one of its deblended objects (``part``, recorded as the brightest pixels that
+    cut it), as Didymos (``_best_didymos`` among its 8-connected pieces; the region itself when nothing is left),
+    and the next free label."""
+    mine = regions.pixels_of(part)
+    sel = np.setdiff1d(regions.pixels_of(region), mine, assume_unique=True)
+    row, col = divmod(int(regions.components.pixel_index[mine[0]]), regions.width)
+    cut = Without(int(part.cuts[-1]), col, row)  # type: ignore[arg-type]
+    next_label = regions.free_label(next_label)
+    pieces = regions._cut(region, sel, regions.threshold_dn8, next_label, cut) if sel.size else []
+    next_label = regions.free_label(next_label)
+    return (_best_didymos(pieces, exp, regions, cfg, place)[0] if pieces else region), next_label
 
 
 def _surface_area(regions: Regions | None, blob: Blob, exp: Expected) -> int:

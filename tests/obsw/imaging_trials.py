@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 from scipy.ndimage import binary_dilation
 
@@ -28,6 +29,7 @@ from obsw.config import ImagingConfig
 from obsw.imaging import BadPixelMap, Blob, Detections, FramePrediction, process_frame
 from obsw.imaging_filtering import lut
 from obsw.imaging_geometry import focal_length_px
+from obsw.imaging_identification import Without
 from tests.obsw.frame_generator import ORBIT_RADIUS_M, Frame, Scene, noiseless_binned, render, with_defect
 from tests.obsw.opencv_reference import ReferenceResult, reference_label, reference_parts, reference_pipeline
 
@@ -177,7 +179,13 @@ def reference_blob(det: Detections, blob: Blob, ref: ReferenceResult
     x, y, w, h = blob.bbox_col_row_w_h
     pick = None
     for n in blob.cuts:
-        if isinstance(n, tuple):  # its pixels within a disc (Regions.within)
+        if isinstance(n, Without):  # the region without the part of its brightest pixels holding a pixel
+            held = [p for p in reference_parts(ref, inside, n.n_pixels) if p[3][n.row, n.col]]
+            rest = (inside & ~held[0][3]).astype(np.uint8)
+            _, labels, stats, cents = cv2.connectedComponentsWithStats(rest, connectivity=8)
+            parts = [(int(stats[j, cv2.CC_STAT_AREA]), (float(cents[j][0]), float(cents[j][1])),
+                      tuple(int(v) for v in stats[j, :4]), labels == j) for j in range(1, len(stats))]
+        elif isinstance(n, tuple):  # its pixels within a disc (Regions.within)
             rows, cols = np.indices(inside.shape)
             parts = reference_parts(ref, inside & (np.hypot(cols - n[0], rows - n[1]) <= n[2]), inside.size)
         else:
@@ -202,14 +210,19 @@ def _body(det: Detections, blob: Blob | None, index: int, frame: Frame, ref: Ref
                       trimmed=bool(blob.trimmed_from))
 
 
+def reference_for(scene: Scene, pixels: np.ndarray) -> ReferenceResult:
+    """The OpenCV pipeline on a frame of the scene, with the bad pixels ground's map holds (``ground_map``)."""
+    d = scene.defects
+    return reference_pipeline(pixels, bad_pixels=([(c, r) for c, r, _ in d.hot[: len(d.hot) // 2]] + list(d.dead),
+                                                  d.dead_columns))
+
+
 def run_trial(scene: Scene, seed: int, prediction: FramePrediction, cfg: ImagingConfig = CFG) -> Trial:
     """Render the scene with noise from ``seed`` and run both pipelines on it (the chain with ``cfg``)."""
     frame = render(scene, np.random.default_rng(seed))
     bad = ground_map(scene)
     det = process_frame(frame.pixels, cfg, bad_pixels=bad, prediction=prediction)
-    d = scene.defects
-    ref = reference_pipeline(frame.pixels, bad_pixels=([(c, r) for c, r, _ in d.hot[: len(d.hot) // 2]]
-                                                       + list(d.dead), d.dead_columns))
+    ref = reference_for(scene, frame.pixels)
     return Trial(frame, det, _body(det, det.didymos, 0, frame, ref), _body(det, det.dimorphos, 1, frame, ref),
                  prediction)
 

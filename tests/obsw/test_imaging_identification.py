@@ -22,6 +22,7 @@ from tests.obsw.imaging_trials import (
     identity,
     prediction_for,
     reference_blob,
+    reference_for,
     run_trial,
     scaled,
     swallowed,
@@ -118,6 +119,22 @@ def test_dimorphos_in_a_whole_region_with_room_for_both_bodies_is_deblended(seed
     _assert_found(_bench_trial(seed, k), 1)
     assert _bench_trial(seed, k, CFG.model_copy(update={"deblend_min_flux_fraction": 0.999})).detections.dimorphos \
         is None
+
+
+@pytest.mark.parametrize(("seed", "k"), [(59, 112), (43, 54), (1, 213), (2, 5), (31, 262), (53, 6)])
+def test_didymos_s_region_that_held_dimorphos_is_reported_without_it(seed: int, k: int) -> None:
+    """Dimorphos found by deblending Didymos's own region (the frames above): Didymos is that region without the
+    object Dimorphos came from, so the two reports share no pixel (OpenCV's regions cut the same way) and both are
+    found; reported whole, Didymos's centroid held Dimorphos and the dust around it (continuity measures from it)."""
+    scene, prediction = _bench_scene(seed, k)
+    t = run_trial(scene, k, prediction)
+    _assert_found(t, 0)
+    _assert_found(t, 1)
+    ref = reference_for(scene, t.frame.pixels)
+    didymos = reference_blob(t.detections, t.detections.didymos, ref)
+    dimorphos = reference_blob(t.detections, t.detections.dimorphos, ref)
+    assert didymos is not None and dimorphos is not None
+    assert not (didymos[0] & dimorphos[0]).any()
 
 
 @pytest.mark.parametrize(("dimorphos_radiance", "plume_brightness"), [(0.8, 1.0), (0.9, 1.0), (1.1, 1.0),
