@@ -21,7 +21,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import cv2
 import numpy as np
 from scipy.ndimage import binary_dilation
 
@@ -31,7 +30,13 @@ from obsw.imaging_filtering import lut
 from obsw.imaging_geometry import focal_length_px
 from obsw.imaging_identification import Without
 from tests.obsw.frame_generator import ORBIT_RADIUS_M, Frame, Scene, noiseless_binned, render, with_defect
-from tests.obsw.opencv_reference import ReferenceResult, reference_label, reference_parts, reference_pipeline
+from tests.obsw.opencv_reference import (
+    ReferenceResult,
+    reference_components,
+    reference_label,
+    reference_parts,
+    reference_pipeline,
+)
 
 CFG = ImagingConfig()
 PAPER_LIMIT_PX = 15.0  # the paper's pass limit, binned px
@@ -181,10 +186,7 @@ def reference_blob(det: Detections, blob: Blob, ref: ReferenceResult
     for n in blob.cuts:
         if isinstance(n, Without):  # the region without the part of its brightest pixels holding a pixel
             held = [p for p in reference_parts(ref, inside, n.n_pixels) if p[3][n.row, n.col]]
-            rest = (inside & ~held[0][3]).astype(np.uint8)
-            _, labels, stats, cents = cv2.connectedComponentsWithStats(rest, connectivity=8)
-            parts = [(int(stats[j, cv2.CC_STAT_AREA]), (float(cents[j][0]), float(cents[j][1])),
-                      tuple(int(v) for v in stats[j, :4]), labels == j) for j in range(1, len(stats))]
+            parts = reference_components(inside & ~held[0][3])
         elif isinstance(n, tuple):  # its pixels within a disc (Regions.within)
             rows, cols = np.indices(inside.shape)
             parts = reference_parts(ref, inside & (np.hypot(cols - n[0], rows - n[1]) <= n[2]), inside.size)

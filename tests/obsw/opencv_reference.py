@@ -135,8 +135,13 @@ def reference_parts(ref: ReferenceResult, inside: np.ndarray, n_pixels: int
         x, y, w, h = cv2.boundingRect(inside.astype(np.uint8))
         return [(int(m["m00"]), (m["m10"] / m["m00"], m["m01"] / m["m00"]), (x, y, w, h), inside)]
     level = int(np.sort(values)[values.size - n_pixels])
-    keep = (inside & (ref.image8 >= level)).astype(np.uint8)
-    _, labels, stats, cents = cv2.connectedComponentsWithStats(keep, connectivity=8)
+    return reference_components(inside & (ref.image8 >= level))
+
+
+def reference_components(mask: np.ndarray) -> list[tuple[int, tuple[float, float], tuple[int, int, int, int],
+                                                          np.ndarray]]:
+    """The 8-connected components (area, centroid, box, mask) of a boolean mask, by OpenCV."""
+    _, labels, stats, cents = cv2.connectedComponentsWithStats(mask.astype(np.uint8), connectivity=8)
     return [(int(stats[j, cv2.CC_STAT_AREA]), (float(cents[j][0]), float(cents[j][1])),
              tuple(int(v) for v in stats[j, :4]), labels == j) for j in range(1, len(stats))]
 
