@@ -58,11 +58,13 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   When still none is and Didymos was cut out of a larger region, or its own region, resolved, has room for both
   bodies, that region is deblended (``Regions.deblended``, SExtractor's multi-threshold deblending: at
   ``deblend_levels`` levels from the threshold to the peak, the parts that split from one another, each holding at
-  least ``deblend_min_flux_fraction`` of the region's light), and its
-  objects no smaller than Dimorphos can be nor larger, off Didymos's disc and where its lit part is expected, are
+  least ``deblend_min_flux_fraction`` of the region's light), and its objects no smaller than Dimorphos can be nor
+  larger (a larger one, both bodies resolved, by its brightest pixels of Dimorphos's expected area: a small
+  Dimorphos parts with its plume's root around it), off Didymos's disc and where its lit part is expected, are
   candidates among the others (``_deblended_dimorphos``): Dimorphos joined to Didymos by the plume or the blur below
   every level the cuts tried keeps its own peak. Such an object is no cut beside the body: its limb is not sought
-  (``Identification.dimorphos_deblended``).
+  (``Identification.dimorphos_deblended``). When Didymos's own region held it, Didymos is that region without the
+  object Dimorphos came from (``Without``): continuity measures the next frame's pair from it.
   A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
   fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
   that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
@@ -1226,7 +1228,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         dimorphos, source, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions,
                                                              probability, next_label)
         deblended = dimorphos is not None
-        if source is not None and root is didymos:
+        if source is not None and not didymos.trimmed_from:
             # Didymos's own region held Dimorphos: Didymos is the region without the object Dimorphos is or was cut
             # from, its centroid no longer pulled by Dimorphos or the dust around it (continuity measures from it)
             didymos, next_label = _without(regions, root, source, exp, cfg, place, next_label)
