@@ -14,6 +14,7 @@ A star-shaped surface lets the renderer ray-cast it by a fixed-point iteration o
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -63,15 +64,21 @@ class ShapeModel:
         lo, hi = self.bump_width_deg
         if not 5.0 <= lo <= hi <= 90.0:
             raise ShapeError(f"ShapeModel.bump_width_deg must satisfy 5 <= lo <= hi <= 90, got {self.bump_width_deg}")
+        object.__setattr__(self, "_cache", _shared_cache(self))
 
     @cached_property
     def _semi_axes(self) -> np.ndarray:
         a = np.asarray(self.axis_ratios, dtype=np.float64)
         return a / np.prod(a) ** (1.0 / 3.0)
 
-    @cached_property
+    @property
     def _bumps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Centres (K,3), 1/w^2 (K,), amplitudes (K,) and means (K,) of the bumps, RMS-normalised."""
+        """Centres (K,3), 1/w^2 (K,), amplitudes (K,) and means (K,) of the bumps, RMS-normalised (cached)."""
+        if "bumps" not in self._cache:
+            self._cache["bumps"] = self._draw_bumps()
+        return self._cache["bumps"]
+
+    def _draw_bumps(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         rng = np.random.default_rng(self.seed)
         k = self.n_bumps
         centres = rng.normal(size=(k, 3))
@@ -87,6 +94,8 @@ class ShapeModel:
             amp = amp * (self.irregularity / float(np.sqrt(np.mean(raw * raw))))
         else:
             amp = np.zeros(k)
+        for a in (centres, inv_w2, amp, means):
+            a.setflags(write=False)  # shared by every model of the same parameters
         return centres, inv_w2, amp, means
 
     def radius(self, u: np.ndarray) -> np.ndarray:
@@ -172,6 +181,25 @@ class ShapeModel:
         my2 = my.reshape(mx2.shape)
         out = cv2.remap(table, mx2, my2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         return out.reshape(*shape, 4)
+
+
+_SHARED_MODELS = 8  # parameter sets whose tables are kept: a campaign's runs mostly share their bodies' shapes
+_shared: OrderedDict[ShapeModel, dict] = OrderedDict()
+
+
+def _shared_cache(model: ShapeModel) -> dict:
+    """The cache of every model with ``model``'s parameters (its tables cost 0.19 s a run to build): a process
+    running many runs of one scenario (a campaign's worker) builds them once. Least recently used sets go first."""
+    try:
+        cache = _shared.pop(model)
+    except TypeError:  # parameters given as lists: not hashable, so a cache of its own
+        return {}
+    except KeyError:
+        cache = {}
+    _shared[model] = cache
+    while len(_shared) > _SHARED_MODELS:
+        _shared.popitem(last=False)
+    return cache
 
 
 _ROWS_PER_PASS = 4096  # directions evaluated together by ``radius_and_normal``

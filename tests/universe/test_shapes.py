@@ -67,3 +67,31 @@ def test_each_direction_is_evaluated_as_if_alone() -> None:
     grid = u.reshape(1, -1, 3)  # any leading shape is kept
     r2, n2 = shape.radius_and_normal(grid)
     assert r2.shape == (1, 10_001) and n2.shape == (1, 10_001, 3) and np.array_equal(r2[0], r)
+
+
+def test_models_of_the_same_parameters_share_their_tables_and_nothing_else_does() -> None:
+    """Equal parameters give the same cached table (built once); a different seed gives its own; shared arrays are
+    read-only; a table served from the shared cache equals one built afresh with no cache."""
+    import universe.shapes as shapes
+
+    a = ShapeModel(seed=91, irregularity=0.1, axis_ratios=(1.2, 1.0, 0.9))
+    b = ShapeModel(seed=91, irregularity=0.1, axis_ratios=(1.2, 1.0, 0.9))
+    other = ShapeModel(seed=92, irregularity=0.1, axis_ratios=(1.2, 1.0, 0.9))
+    assert a.surface_table() is b.surface_table()
+    assert a.max_radius() == b.max_radius()
+    assert other.surface_table() is not a.surface_table()
+    assert not np.array_equal(other.surface_table(), a.surface_table())
+    assert all(not arr.flags.writeable for arr in (*a._bumps, a.surface_table()))
+    shared = a.surface_table()
+    shapes._shared.clear()
+    fresh = ShapeModel(seed=91, irregularity=0.1, axis_ratios=(1.2, 1.0, 0.9))
+    assert fresh.surface_table() is not shared and np.array_equal(fresh.surface_table(), shared)
+
+
+def test_the_shared_cache_keeps_a_bounded_number_of_parameter_sets() -> None:
+    """Many distinct shapes (a campaign dispersing them) keep at most the bound's number of caches."""
+    import universe.shapes as shapes
+
+    for seed in range(3 * shapes._SHARED_MODELS):
+        ShapeModel(seed=1000 + seed, irregularity=0.05).max_radius()
+    assert len(shapes._shared) == shapes._SHARED_MODELS
