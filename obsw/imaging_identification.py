@@ -60,11 +60,13 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   ``deblend_levels`` levels from the threshold to the peak, the parts that split from one another, each holding at
   least ``deblend_min_flux_fraction`` of the region's light), and its objects no smaller than Dimorphos can be nor
   larger (a larger one, both bodies resolved, by its brightest pixels of Dimorphos's expected area: a small
-  Dimorphos parts with its plume's root around it), off Didymos's disc and where its lit part is expected, are
-  candidates among the others (``_deblended_dimorphos``): Dimorphos joined to Didymos by the plume or the blur below
-  every level the cuts tried keeps its own peak. Such an object is no cut beside the body: its limb is not sought
-  (``Identification.dimorphos_deblended``). When Didymos's own region held it, Didymos is that region without the
-  object Dimorphos came from (``Without``): continuity measures the next frame's pair from it.
+  Dimorphos parts with its plume's root around it), off Didymos's disc (for a larger one, other than the object
+  holding most of Didymos, the disc of Didymos without it: Dimorphos merged with Didymos pulls its centroid over)
+  and where its lit part is expected, are candidates among the others (``_deblended_dimorphos``): Dimorphos joined
+  to Didymos by the plume or the blur below every level the cuts tried keeps its own peak. Such an object is no cut
+  beside the body: its limb is not sought (``Identification.dimorphos_deblended``). When Didymos's region, whole or
+  cut, held it, Didymos is that region without the object Dimorphos came from (``Without``): continuity measures
+  the next frame's pair from it.
   A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
   fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
   that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
@@ -1228,10 +1230,11 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         dimorphos, source, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions,
                                                              probability, next_label)
         deblended = dimorphos is not None
-        if source is not None and not didymos.trimmed_from:
-            # Didymos's own region held Dimorphos: Didymos is the region without the object Dimorphos is or was cut
+        if source is not None:
+            # Didymos's region held Dimorphos: Didymos is that region without the object Dimorphos is or was cut
             # from, its centroid no longer pulled by Dimorphos or the dust around it (continuity measures from it)
-            didymos, next_label = _without(regions, root, source, exp, cfg, place, next_label)
+            didymos, next_label = _without(regions, didymos if didymos.trimmed_from else root, source, exp, cfg,
+                                           place, next_label)
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
@@ -1260,14 +1263,20 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
     # own, and an unresolved Dimorphos's expected area is any bright clump's peak)
     cut_larger = _didymos_resolved(exp, regions, cfg) and _must_be_resolved(exp.dimorphos_radius, regions, cfg)
     objects: list[tuple[Blob, Blob]] = []  # each candidate and the object it is or was cut from
-    for o in regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label):
-        if _distance(o.region_centroid_col_row, centre) <= exp.didymos_radius:
+    deblended = regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label)
+    own = _didymos_object(regions, deblended, didymos, max(1, round(exp.didymos_area))) if cut_larger else None
+    for o in deblended:
+        larger = cut_larger and o.area_px > exp.dimorphos_area_max
+        # a larger object off Didymos's own is judged by its brightest part: the limb or dust it holds beside
+        # Dimorphos can put its centroid on a disc centred by a Didymos that Dimorphos pulled towards itself
+        if (o is own) if larger else _distance(o.region_centroid_col_row, centre) <= exp.didymos_radius:
             continue
         next_label = regions.free_label(next_label)
-        for p in regions.parts(o, round(exp.dimorphos_area), next_label) \
-                if cut_larger and o.area_px > exp.dimorphos_area_max else [o]:
+        # Didymos's disc as it would be without the object: a Dimorphos merged with it pulls its centroid over
+        disc = _centre_without(regions, didymos, o, exp) if larger else centre
+        for p in regions.parts(o, round(exp.dimorphos_area), next_label) if larger else [o]:
             if smallest <= p.area_px <= exp.dimorphos_area_max \
-                    and _distance(p.region_centroid_col_row, centre) > exp.didymos_radius:
+                    and _distance(p.region_centroid_col_row, disc) > exp.didymos_radius:
                 objects.append((p, o))
     next_label = regions.free_label(next_label)
     agree = []
@@ -1284,17 +1293,48 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
     return (None, None, next_label) if source is None else (chosen, source, next_label)
 
 
+def _centre_without(regions: Regions, didymos: Blob, o: Blob, exp: Expected) -> tuple[float, float]:
+    """Didymos's centre (``_didymos_centre``) from its pixels outside the object ``o`` (all of them if none is)."""
+    mine = regions.pixels_of(didymos)
+    rest = np.setdiff1d(mine, regions.pixels_of(o), assume_unique=True)
+    if rest.size == 0 or rest.size == mine.size:
+        return _didymos_centre(didymos, exp)
+    rows, cols = np.divmod(regions.components.pixel_index[rest], regions.width)
+    return _didymos_centre(didymos._replace(region_centroid_col_row=(float(cols.mean()), float(rows.mean()))), exp)
+
+
+def _didymos_object(regions: Regions, objects: list[Blob], didymos: Blob, n_pixels: int) -> Blob | None:
+    """The deblended object holding the most of Didymos's surface, its brightest ``n_pixels`` (its expected area:
+    the dust and a Dimorphos beside it are fainter or smaller); None if none holds any."""
+    mine = regions.pixels_of(didymos)
+    vals = regions.values8[mine]
+    if vals.size > n_pixels:
+        mine = mine[vals >= np.partition(vals, vals.size - n_pixels)[vals.size - n_pixels]]
+    shared = [np.intersect1d(regions.pixels_of(o), mine, assume_unique=True).size for o in objects]
+    return objects[int(np.argmax(shared))] if shared and max(shared) > 0 else None
+
+
 def _without(regions: Regions, region: Blob, part: Blob, exp: Expected, cfg: ImagingConfig, place: _Place,
              next_label: int) -> tuple[Blob, int]:
-    """A region without the pixels of one of its deblended objects (``part``, recorded as the brightest pixels that
-    cut it), as Didymos (``_best_didymos`` among its 8-connected pieces; the region itself when nothing is left),
-    and the next free label."""
-    mine = regions.pixels_of(part)
-    sel = np.setdiff1d(regions.pixels_of(region), mine, assume_unique=True)
-    row, col = divmod(int(regions.components.pixel_index[mine[0]]), regions.width)
-    cut = Without(int(part.cuts[-1]), col, row)  # type: ignore[arg-type]
+    """A region (Didymos's, whole or cut) without one of the deblended objects of the region it belongs to
+    (``part``, recorded as the brightest pixels that cut it): without the part of its own brightest as many pixels
+    that shares the most pixels with the object (the object itself when the region is whole), as Didymos
+    (``_best_didymos`` among its 8-connected pieces), and the next free label; the region itself when the object
+    does not overlap it or nothing is left."""
+    n = int(part.cuts[-1])  # type: ignore[arg-type]
+    theirs = regions.pixels_of(part)
     next_label = regions.free_label(next_label)
-    pieces = regions._cut(region, sel, regions.threshold_dn8, next_label, cut) if sel.size else []
+    held, anchor = None, None
+    for p in regions.parts(region, n, next_label):
+        common = np.intersect1d(regions.pixels_of(p), theirs, assume_unique=True)
+        if common.size and (anchor is None or common.size > anchor.size):
+            held, anchor = p, common
+    if held is None or anchor is None:
+        return region, regions.free_label(next_label)
+    sel = np.setdiff1d(regions.pixels_of(region), regions.pixels_of(held), assume_unique=True)
+    row, col = divmod(int(regions.components.pixel_index[anchor[0]]), regions.width)
+    next_label = regions.free_label(next_label)
+    pieces = regions._cut(region, sel, region.threshold_dn8, next_label, Without(n, col, row)) if sel.size else []
     next_label = regions.free_label(next_label)
     return (_best_didymos(pieces, exp, regions, cfg, place)[0] if pieces else region), next_label
 
