@@ -1267,7 +1267,7 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
     own = _didymos_object(regions, deblended, didymos, max(1, round(exp.didymos_area))) if cut_larger else None
     for o in deblended:
         larger = cut_larger and o.area_px > exp.dimorphos_area_max
-        # a larger object off Didymos's own is judged by its brightest part: the limb or dust it holds beside
+        # a larger object other than Didymos's own is judged by its brightest part: the limb or dust it holds beside
         # Dimorphos can put its centroid on a disc centred by a Didymos that Dimorphos pulled towards itself
         if (o is own) if larger else _distance(o.region_centroid_col_row, centre) <= exp.didymos_radius:
             continue
@@ -1317,8 +1317,8 @@ def _didymos_object(regions: Regions, objects: list[Blob], didymos: Blob, n_pixe
 def _without(regions: Regions, region: Blob, part: Blob, exp: Expected, cfg: ImagingConfig, place: _Place,
              next_label: int) -> tuple[Blob, int]:
     """A region (Didymos's, whole or cut) without one of the deblended objects of the region it belongs to
-    (``part``, recorded as the brightest pixels that cut it): without the part of its own brightest as many pixels
-    that shares the most pixels with the object (the object itself when the region is whole), as Didymos
+    (``part``, recorded as the n brightest pixels that cut it): without the part of the region's own n brightest
+    pixels sharing the most pixels with the object (the object itself when the region is whole), as Didymos
     (``_best_didymos`` among its 8-connected pieces), and the next free label; the region itself when the object
     does not overlap it or nothing is left."""
     n = int(part.cuts[-1])  # type: ignore[arg-type]
