@@ -63,10 +63,11 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   Dimorphos parts with its plume's root around it), off Didymos's disc (for a larger one, other than the object
   holding most of Didymos, the disc of Didymos without it: Dimorphos merged with Didymos pulls its centroid over)
   and where its lit part is expected, are candidates among the others (``_deblended_dimorphos``): Dimorphos joined
-  to Didymos by the plume or the blur below every level the cuts tried keeps its own peak. Such an object is no cut
-  beside the body: its limb is not sought (``Identification.dimorphos_deblended``). When Didymos's region, whole or
-  cut, held it, Didymos is that region without the object Dimorphos came from (``Without``): continuity measures
-  the next frame's pair from it.
+  to Didymos by the plume or the blur below every level the cuts tried keeps its own peak. An object's own peak is no
+  cut beside the body: its limb is not sought (``Identification.dimorphos_deblended``); the brightest part of a larger
+  one is such a cut, and its limb is sought as for any other. When Didymos's region, whole or cut, held it, Didymos
+  is that region without the object Dimorphos came from (``Without``): continuity measures the next frame's pair
+  from it.
   A Didymos's region (of a disc whose blurred limb is under a quarter of it) with room for both bodies, most of whose pixels are
   fainter than halfway from the threshold to its surface's typical level (``_surface``), is cut to its pixels above
   that level, the largest part being Didymos and the others candidates: a lit surface is mostly that bright, a fan
@@ -1098,7 +1099,7 @@ class Identification(NamedTuple):
     didymos: Blob | None
     dimorphos: Blob | None
     didymos_probability: float = 1.0
-    dimorphos_deblended: bool = False  # Dimorphos is an object of Didymos's region deblended (``Regions.deblended``)
+    dimorphos_deblended: bool = False  # Dimorphos is a peak of Didymos's region deblended (``Regions.deblended``)
 
 
 def identify_bodies(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous: object | None = None,
@@ -1229,7 +1230,8 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
         dimorphos, source, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions,
                                                              probability, next_label)
-        deblended = dimorphos is not None
+        # an object's own peak is no cut beside the body; the brightest part of a larger one is, as any cut
+        deblended = dimorphos is not None and dimorphos is source
         if source is not None:
             # Didymos's region held Dimorphos: Didymos is that region without the object Dimorphos is or was cut
             # from, its centroid no longer pulled by Dimorphos or the dust around it (continuity measures from it)
