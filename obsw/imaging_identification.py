@@ -207,13 +207,21 @@ class Regions:
     def parts(self, blob: Blob, n_pixels: int, first_label: int) -> list[Blob]:
         """The brightest part of a blob: its pixels at or above the level that leaves at least ``n_pixels`` of
         them (the n-th largest value), split into 8-connected parts, in raster order; [blob] if it is not larger."""
+        n = max(int(n_pixels), 1)
+        sel, level = self.brightest(blob, n)
+        if level is None:
+            return [blob]
+        return self._cut(blob, sel, level - 1, first_label, n)
+
+    def brightest(self, blob: Blob, n_pixels: int) -> tuple[np.ndarray, int | None]:
+        """Positions of a blob's pixels at or above the level of its ``n_pixels``-th brightest (ties kept), and that
+        level; all its pixels and None when it has no more than ``n_pixels``."""
         sel = self.pixels_of(blob)
         vals = self.values8[sel]
-        n = max(int(n_pixels), 1)
-        if vals.size <= n:
-            return [blob]
-        level = int(np.partition(vals, vals.size - n)[vals.size - n])
-        return self._cut(blob, sel[vals >= level], level - 1, first_label, n)
+        if vals.size <= n_pixels:
+            return sel, None
+        level = int(np.partition(vals, vals.size - n_pixels)[vals.size - n_pixels])
+        return sel[vals >= level], level
 
     def within(self, blob: Blob, centre_col_row: tuple[float, float], radius_px: float, first_label: int
                ) -> list[Blob]:
@@ -1266,7 +1274,9 @@ def _deblended_dimorphos(root: Blob, didymos: Blob, cands: list[Blob], exp: Expe
     cut_larger = _didymos_resolved(exp, regions, cfg) and _must_be_resolved(exp.dimorphos_radius, regions, cfg)
     objects: list[tuple[Blob, Blob]] = []  # each candidate and the object it is or was cut from
     deblended = regions.deblended(root, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label)
-    own = _didymos_object(regions, deblended, didymos, max(1, round(exp.didymos_area))) if cut_larger else None
+    # only a larger object is told from Didymos's own by it: not sought when there is none
+    own = _didymos_object(regions, deblended, didymos, max(1, round(exp.didymos_area))) \
+        if cut_larger and any(o.area_px > exp.dimorphos_area_max for o in deblended) else None
     for o in deblended:
         larger = cut_larger and o.area_px > exp.dimorphos_area_max
         # a larger object other than Didymos's own is judged by its brightest part: the limb or dust it holds beside
@@ -1308,10 +1318,7 @@ def _centre_without(regions: Regions, didymos: Blob, o: Blob, exp: Expected) -> 
 def _didymos_object(regions: Regions, objects: list[Blob], didymos: Blob, n_pixels: int) -> Blob | None:
     """The deblended object holding the most of Didymos's surface, its brightest ``n_pixels`` (its expected area:
     the dust and a Dimorphos beside it are fainter or smaller); None if none holds any."""
-    mine = regions.pixels_of(didymos)
-    vals = regions.values8[mine]
-    if vals.size > n_pixels:
-        mine = mine[vals >= np.partition(vals, vals.size - n_pixels)[vals.size - n_pixels]]
+    mine, _ = regions.brightest(didymos, n_pixels)
     shared = [np.intersect1d(regions.pixels_of(o), mine, assume_unique=True).size for o in objects]
     return objects[int(np.argmax(shared))] if shared and max(shared) > 0 else None
 
