@@ -37,6 +37,8 @@ from scenario import compose
 from scenario.model import Scenario, scenario_from_dict
 from timeline.convert import epoch_datetime
 from timeline.model import Timeline
+from universe.config import FlybyConfig
+from universe.geometry import barycentre_flyby
 
 CORNER_SIGMA = 3.0  # ground's corners: C/A time and distance this many one-sigma off its belief (the paper's 3-sigma)
 END_MARGIN_S = 5.0  # a case runs this long past its last release and its scoring window (the on-board C/A a second off)
@@ -89,11 +91,10 @@ def rehearsal_scenario(sc: Scenario, belief: FlybyBelief, case: Case, upload_utc
     u["fidelity"] = fidelity
     if upload_utc_s is not None:
         u["start_s"], data["ground"]["upload_nominal_at_s"] = upload_utc_s, None
-    u["flyby"].update(
-        ca_time_s=belief.ca_utc_s + case.time_sigma * belief.ca_time_sigma_s,
-        ca_distance_km=belief.ca_distance_km + case.distance_sigma * belief.ca_distance_sigma_km,
-        speed_km_s=belief.speed_km_s, approach_direction=list(belief.approach_direction),
-        ca_direction=list(belief.ca_direction))
+    target = case_target(belief, case)
+    flyby = barycentre_flyby(target, sc.universe.bodies)  # ground's belief is Dimorphos's flyby
+    u["flyby"].update(ca_time_s=flyby.ca_time_s, ca_distance_km=flyby.ca_distance_km, speed_km_s=flyby.speed_km_s,
+                      approach_direction=list(flyby.approach_direction), ca_direction=list(flyby.ca_direction))
     u["uncertainty"] = {"ca_time_sigma_s": belief.ca_time_sigma_s, "ca_distance_sigma_km": belief.ca_distance_sigma_km,
                         "ca_time_offset_sigma": -case.time_sigma, "ca_distance_offset_sigma": -case.distance_sigma}
     u["oscillator"] = {"initial_offset_s": sc.ground.a_priori_obt_offset_s}
@@ -101,11 +102,19 @@ def rehearsal_scenario(sc: Scenario, belief: FlybyBelief, case: Case, upload_utc
     data["ground"]["timeline_file"] = None
     data["name"] = f"{sc.name}-dry-run"
     if timeline is not None:
-        end = case_end_s(sc, belief, timeline, u["flyby"]["ca_time_s"])
+        end = case_end_s(sc, belief, timeline, target.ca_time_s)
         if end is not None and u["start_s"] < end < u["end_s"]:
             u["end_s"] = u["start_s"] + math.ceil((end - u["start_s"]) / sc.universe.control_period_s) \
                 * sc.universe.control_period_s
     return scenario_from_dict(data, f"dry run case '{case.name}'")
+
+
+def case_target(belief: FlybyBelief, case: Case) -> FlybyConfig:
+    """The case's true flyby of Dimorphos: ground's belief moved by the case's sigmas in C/A time and distance."""
+    return FlybyConfig(ca_time_s=belief.ca_utc_s + case.time_sigma * belief.ca_time_sigma_s,
+                       ca_distance_km=belief.ca_distance_km + case.distance_sigma * belief.ca_distance_sigma_km,
+                       speed_km_s=belief.speed_km_s, approach_direction=belief.approach_direction,
+                       ca_direction=belief.ca_direction)
 
 
 def case_end_s(sc: Scenario, belief: FlybyBelief, timeline: Timeline, true_ca_utc_s: float) -> float | None:
@@ -218,8 +227,8 @@ def rehearse_case(sc: Scenario, timeline: Timeline, belief: FlybyBelief, case: C
         world = rehearsal_scenario(sc, belief, case, upload_utc_s, fidelity, timeline)
     except ScenarioError as err:
         return CaseResult(case, float("nan"), float("nan"), error="; ".join(err.problems))
-    f = world.universe.flyby
-    result = CaseResult(case, f.ca_time_s, f.ca_distance_km)
+    target = case_target(belief, case)  # the true C/A is Dimorphos's, as the report's
+    result = CaseResult(case, target.ca_time_s, target.ca_distance_km)
     insert_seqs: set[int] = set()
 
     def on_step(req: StepRequest, reply: StepReply, frame: np.ndarray | None) -> None:

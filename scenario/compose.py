@@ -20,7 +20,7 @@ from ground.config import FlybyBelief
 from scenario.model import Scenario
 from timeline.model import Timeline
 from universe.config import CameraConfig
-from universe.geometry import nominal_ca
+from universe.geometry import dimorphos_line, nominal_ca
 
 if TYPE_CHECKING:
     from ground.segment import GroundSegment
@@ -52,17 +52,16 @@ def universe(scenario: Scenario) -> Universe:
 
 
 def ground_belief(scenario: Scenario) -> FlybyBelief:
-    """What ground believes of the flyby: the true trajectory plus the knowledge error drawn with the seed."""
+    """What ground believes of the flyby: the target's, Dimorphos's, true trajectory (``dimorphos_line``: ground's
+    ephemeris of the binary is the truth's orbit) plus the knowledge error of its C/A time and distance drawn with
+    the seed. The target's, not the barycentre's: the flight software tracks Dimorphos, and Dimorphos's place on its
+    orbit across the flyby plane is a tilt of the plane that no C/A time or distance it recognises can take up."""
     u = scenario.universe
-    f, unc = u.flyby, u.uncertainty
-    ca_utc_s, ca_km = nominal_ca(f, unc, rng_streams(scenario.seed)["nominal"])
-    e_v = np.asarray(f.approach_direction, dtype=float)
-    e_v /= np.linalg.norm(e_v)
-    e_ca = np.asarray(f.ca_direction, dtype=float)
-    e_ca = e_ca - (e_ca @ e_v) * e_v
-    e_ca /= np.linalg.norm(e_ca)
-    return FlybyBelief(ca_utc_s=ca_utc_s, ca_distance_km=ca_km, speed_km_s=f.speed_km_s,
-                       approach_direction=tuple(float(c) for c in e_v), ca_direction=tuple(float(c) for c in e_ca),
+    line = dimorphos_line(u.flyby, u.bodies)
+    unc = u.uncertainty
+    ca_utc_s, ca_km = nominal_ca(line, unc, rng_streams(scenario.seed)["nominal"])
+    return FlybyBelief(ca_utc_s=ca_utc_s, ca_distance_km=ca_km, speed_km_s=line.speed_km_s,
+                       approach_direction=line.approach_direction, ca_direction=line.ca_direction,
                        ca_time_sigma_s=unc.ca_time_sigma_s, ca_distance_sigma_km=unc.ca_distance_sigma_km)
 
 

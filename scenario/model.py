@@ -26,7 +26,7 @@ from scenario.expectation import Expectation
 from scenario.knowledge import fill_knowledge, filled_paths, knowledge_problems
 from timeline.convert import epoch_datetime
 from universe.config import UniverseConfig
-from universe.geometry import GeometryError, nominal_ca
+from universe.geometry import GeometryError, dimorphos_line, nominal_ca
 from universe.oscillator import ClockModelError, Oscillator, clock_jumps_s
 
 if TYPE_CHECKING:
@@ -63,11 +63,15 @@ class Scenario(Config):
         return fill_knowledge(data) if isinstance(data, dict) else data
 
     def _grid_fits_the_belief(self) -> list[str]:
-        """The on-board recognition grid around ground's nominal (truth plus the seeded error) must stay at
-        positive C/A distances, or the flight software refuses the nominal trajectory."""
+        """The on-board recognition grid around ground's nominal (the target's truth plus the seeded error) must stay
+        at positive C/A distances, or the flight software refuses the nominal trajectory."""
         u, rec = self.universe, self.obsw.recognition
         try:
-            _, ca_km = nominal_ca(u.flyby, u.uncertainty, rng_streams(self.seed)["nominal"])
+            line = dimorphos_line(u.flyby, u.bodies)
+        except GeometryError as exc:
+            return [f"universe.flyby: {exc}"]
+        try:
+            _, ca_km = nominal_ca(line, u.uncertainty, rng_streams(self.seed)["nominal"])
         except GeometryError as exc:
             return [f"universe.uncertainty.ca_distance_sigma_km: {exc}"]
         low = ca_km - rec.grid_span_sigma * u.uncertainty.ca_distance_sigma_km

@@ -245,6 +245,51 @@ class FlybyGeometry:
             target_in_fov=in_fov,
         )
 
+def _line_through(p_m: np.ndarray, v_m_s: np.ndarray, t_s: float, what: str) -> FlybyConfig:
+    """The straight flyby through position ``p_m`` with velocity ``v_m_s`` at ``t_s``: its C/A time, distance,
+    speed and directions."""
+    speed = float(np.linalg.norm(v_m_s))
+    e_v = v_m_s / speed
+    dt = -float(p_m @ e_v) / speed
+    ca = p_m + v_m_s * dt
+    d = float(np.linalg.norm(ca))
+    if d < 1.0:  # a metre: the spacecraft would pass through the body's centre
+        raise GeometryError(f"{what}: the spacecraft passes {d:.3f} m from the centre; no closest approach direction")
+    return FlybyConfig(ca_time_s=t_s + dt, ca_distance_km=d / 1e3, speed_km_s=speed / 1e3,
+                       approach_direction=tuple(float(c) for c in e_v),
+                       ca_direction=tuple(float(c) for c in ca / d))
+
+
+def dimorphos_line(flyby: FlybyConfig, bodies: BodiesConfig) -> FlybyConfig:
+    """The spacecraft's motion relative to Dimorphos as a straight flyby (C/A time and distance, speed, directions),
+    for ``flyby`` of the Didymos barycentre: the tangent to the relative motion at the barycentre's C/A. Dimorphos's
+    orbit bends it by about a metre over ten minutes. The target's C/A differs from the barycentre's by Dimorphos's
+    place on its orbit: along the flyby plane that is a change of C/A time and distance, across it a change of the
+    plane itself, which a trajectory of the barycentre leaves out (up to 1.2 deg at a 55 km C/A)."""
+    g = FlybyGeometry(flyby, bodies)
+    t = g.ca_time_s
+    return _line_through(g.spacecraft_position_m(t) - g.dimorphos_position_m(t),
+                         g.spacecraft_velocity_m_s(t) - g.dimorphos_velocity_m_s(t), t, "flyby of Dimorphos")
+
+
+def barycentre_flyby(target: FlybyConfig, bodies: BodiesConfig) -> FlybyConfig:
+    """The flyby of the Didymos barycentre whose ``dimorphos_line`` is ``target`` (fixed-point iteration on the
+    barycentre's C/A time, where ``dimorphos_line`` takes the tangent; it moves by under a second, then by
+    nanoseconds)."""
+    line = FlybyGeometry(target, bodies)
+    t = line.ca_time_s
+    out = target
+    for _ in range(4):
+        orbit = FlybyGeometry(out, bodies)
+        out = _line_through(line.spacecraft_position_m(t) + orbit.dimorphos_position_m(t),
+                            line.spacecraft_velocity_m_s(t) + orbit.dimorphos_velocity_m_s(t), t,
+                            "flyby of the barycentre")
+        if abs(out.ca_time_s - t) < 1e-12:
+            break
+        t = out.ca_time_s
+    return out
+
+
 def nominal_ca(flyby: FlybyConfig, unc: UncertaintyConfig, rng: np.random.Generator) -> tuple[float, float]:
     """Return the (C/A time s, C/A distance km) that ground believes: truth plus a seeded error.
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -17,6 +18,7 @@ from scenario import compose
 from scenario.model import Scenario, load_run_inputs, load_scenario
 from timeline.model import AfterPreviousTag, CaTag, Timeline
 from timeline.parse import load_timeline
+from universe.geometry import dimorphos_line
 
 CONFIGS = Path(__file__).parents[2] / "configs"
 TIMELINE = CONFIGS / "timelines" / "flyby-imaging.yaml"
@@ -43,16 +45,17 @@ def nominal() -> tuple[Scenario, Timeline, list[CaseResult]]:
 
 
 def test_case_world_is_grounds_belief_moved_by_the_case(tmp_path: Path) -> None:
-    """A case's truth is ground's belief plus k sigma, ground in it believes exactly the belief, its on-board time is
-    UTC plus the a-priori offset, and it has no faults."""
+    """A case's true flyby of Dimorphos is ground's belief plus k sigma, ground in it believes exactly the belief,
+    its on-board time is UTC plus the a-priori offset, and it has no faults."""
     sc = load_scenario(NOMINAL)
     belief = compose.ground_belief(sc)
     for case in cases():
         world = rehearsal_scenario(sc, belief, case)
-        f = world.universe.flyby
-        assert f.ca_time_s == pytest.approx(belief.ca_utc_s + case.time_sigma * belief.ca_time_sigma_s)
+        f = dimorphos_line(world.universe.flyby, world.universe.bodies)
+        assert f.ca_time_s == pytest.approx(belief.ca_utc_s + case.time_sigma * belief.ca_time_sigma_s, abs=1e-9)
         far = case.distance_sigma * belief.ca_distance_sigma_km
-        assert f.ca_distance_km == pytest.approx(belief.ca_distance_km + far)
+        assert f.ca_distance_km == pytest.approx(belief.ca_distance_km + far, abs=1e-9)
+        assert np.allclose(f.ca_direction, belief.ca_direction, rtol=0.0, atol=1e-12)
         seen = compose.ground_belief(world)
         assert seen.ca_utc_s == pytest.approx(belief.ca_utc_s, abs=1e-9)
         assert seen.ca_distance_km == pytest.approx(belief.ca_distance_km, abs=1e-9)
@@ -71,7 +74,7 @@ def test_a_case_ends_after_its_last_release_and_its_scoring_window() -> None:
     last = max(_ca_offsets(timeline))
     for case in cases():
         world = rehearsal_scenario(sc, belief, case, timeline=timeline)
-        true_ca = world.universe.flyby.ca_time_s
+        true_ca = dimorphos_line(world.universe.flyby, world.universe.bodies).ca_time_s
         wanted = max(belief.ca_utc_s + last, true_ca + last, true_ca + sc.ground.report.in_view_after_ca_s)
         assert wanted < world.universe.end_s <= min(sc.universe.end_s, wanted + 6.0)
 

@@ -7,10 +7,18 @@ import pytest
 from pydantic import ValidationError
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from scipy.optimize import brentq
 from scipy.spatial.transform import Rotation
 
 from universe.config import BodiesConfig, FlybyConfig, UncertaintyConfig
-from universe.geometry import FlybyGeometry, GeometryError, camera_axes_body, nominal_ca
+from universe.geometry import (
+    FlybyGeometry,
+    GeometryError,
+    barycentre_flyby,
+    camera_axes_body,
+    dimorphos_line,
+    nominal_ca,
+)
 
 # A binary so tight that Dimorphos sits on the barycentre: closed forms about the barycentre then hold for it.
 POINT_BODIES = BodiesConfig(orbit_radius_m=1e-6)
@@ -243,3 +251,57 @@ def test_nominal_ca_rejects_non_positive_distance() -> None:
     """A corner that puts C/A at or below zero distance is an error naming the sigma field."""
     with pytest.raises(GeometryError, match="ca_distance_sigma_km"):
         nominal_ca(FlybyConfig(), UncertaintyConfig(ca_distance_offset_sigma=-12.0), np.random.default_rng(0))
+
+
+@settings(max_examples=40, deadline=None)
+@given(unit_vectors, unit_vectors, st.floats(2.0, 200.0), st.floats(1.0, 20.0), st.floats(0.0, 360.0))
+def test_dimorphos_line_is_the_closest_approach_to_dimorphos(approach, ca, d_km, v_km_s, phase_deg) -> None:
+    """The straight flyby of Dimorphos has the C/A time, distance and direction of the true closest approach to
+    Dimorphos (the root of d|r|^2/dt of the true positions, by bisection), and moves along the spacecraft's velocity
+    relative to Dimorphos: Dimorphos's orbit bends the relative motion by micrometres over the seconds between."""
+    if abs(float(np.dot(approach, ca))) > 0.99 * float(np.linalg.norm(approach) * np.linalg.norm(ca)):
+        return
+    bodies = BodiesConfig(orbit_phase_deg=phase_deg)
+    flyby = FlybyConfig(ca_distance_km=d_km, speed_km_s=v_km_s, approach_direction=tuple(approach),
+                        ca_direction=tuple(ca))
+    line = dimorphos_line(flyby, bodies)
+    g = FlybyGeometry(flyby, bodies)
+
+    def rel(t: float) -> np.ndarray:
+        return g.spacecraft_position_m(t) - g.dimorphos_position_m(t)
+
+    def closing(t: float) -> float:
+        return float(rel(t) @ (g.spacecraft_velocity_m_s(t) - g.dimorphos_velocity_m_s(t)))
+
+    span = 2.0 * bodies.orbit_radius_m / (v_km_s * 1e3)  # Dimorphos's C/A is within its arm along the track
+    t_ca = brentq(closing, g.ca_time_s - span, g.ca_time_s + span, xtol=1e-12)
+    r = rel(t_ca)
+    assert line.ca_time_s == pytest.approx(t_ca, abs=1e-6)
+    assert line.ca_distance_km * 1e3 == pytest.approx(float(np.linalg.norm(r)), abs=1e-3)
+    assert np.allclose(line.ca_direction, r / np.linalg.norm(r), atol=1e-7)
+    v = g.spacecraft_velocity_m_s(t_ca) - g.dimorphos_velocity_m_s(t_ca)
+    assert np.allclose(line.speed_km_s * 1e3 * np.asarray(line.approach_direction), v, atol=1e-4)
+
+
+@settings(max_examples=40, deadline=None)
+@given(unit_vectors, unit_vectors, st.floats(2.0, 200.0), st.floats(1.0, 20.0), st.floats(0.0, 360.0))
+def test_barycentre_flyby_inverts_dimorphos_line(approach, ca, d_km, v_km_s, phase_deg) -> None:
+    """The barycentre's flyby found for a flyby of Dimorphos has that flyby as its Dimorphos line."""
+    if abs(float(np.dot(approach, ca))) > 0.99 * float(np.linalg.norm(approach) * np.linalg.norm(ca)):
+        return
+    bodies = BodiesConfig(orbit_phase_deg=phase_deg)
+    target = dimorphos_line(FlybyConfig(ca_distance_km=d_km, speed_km_s=v_km_s, approach_direction=tuple(approach),
+                                        ca_direction=tuple(ca)), bodies)
+    back = dimorphos_line(barycentre_flyby(target, bodies), bodies)
+    assert back.ca_time_s == pytest.approx(target.ca_time_s, abs=1e-9)
+    assert back.ca_distance_km == pytest.approx(target.ca_distance_km, abs=1e-9)
+    assert np.allclose(back.ca_direction, target.ca_direction, atol=1e-12)
+    assert np.allclose(back.approach_direction, target.approach_direction, atol=1e-12)
+
+
+def test_dimorphos_line_through_dimorphos_is_refused() -> None:
+    """A spacecraft aimed at Dimorphos's centre has no C/A direction: GeometryError naming the flyby."""
+    bodies = BodiesConfig(orbit_phase_deg=90.0, mass_ratio=0.0, orbit_period_h=1e9)  # Dimorphos still at +Y
+    flyby = FlybyConfig(ca_distance_km=bodies.orbit_radius_m / 1e3, ca_direction=(0.0, 1.0, 0.0))
+    with pytest.raises(GeometryError, match="flyby of Dimorphos"):
+        dimorphos_line(flyby, bodies)
