@@ -14,7 +14,8 @@ constant offset of the line of sight and EstimateReport carried it, a change of 
 again when the imaging chain's prediction took the recognised trajectory as soon as it is trusted rather than the
 ground's nominal until the hand-over, a change of flight behaviour on purpose; recorded again when ACQUISITION
 entered from STANDBY waited for the slew onto the target before its first frame, a change of flight behaviour on
-purpose), for the same seed. Since
+purpose; recorded again when ground uploaded Dimorphos's trajectory rather than the barycentre's, a change of
+ground's behaviour on purpose), for the same seed. Since
 2026-12-02 the record keeps the numbers, compared to rounding, not a digest: the digest recorded on one processor
 failed on another (AMD EPYC with AVX2, after Intel runs) with the same code, as Numba and NumPy round by the host's
 vector units.
