@@ -16,6 +16,8 @@ from scenario import compose
 from scenario.dispersions import Dispersion, draw, dispersed_run, run_seeds
 from scenario.model import Scenario, scenario_from_dict
 from universe.camera import hot_pixels
+from universe.config import FlybyConfig
+from universe.geometry import dimorphos_line
 from universe.scene import scene_at
 from universe.simulator import pointing_attitude
 
@@ -154,16 +156,22 @@ def _orbit_phase_deg(u: Any) -> float:
     return math.degrees(math.atan2(p @ g.orbit_e2, p @ g.orbit_e1)) % 360.0
 
 
+def _to_dimorphos(sc: Scenario) -> FlybyConfig:
+    """The run's true flyby of Dimorphos, which ground's belief is of (its velocity, a dispersed truth, included)."""
+    return dimorphos_line(sc.universe.flyby, sc.universe.bodies)
+
+
 REACH: list[tuple[str, dict[str, Any], Any]] = [
     # (path, distribution, (fsw, universe, ground, drawn value, scenario) -> (value inside the component, expected))
     ("universe.uncertainty.ca_time_offset_sigma", {"normal": {"sigma": 1.0, "mean": 0.0}},
      lambda f, u, g, v, s: (g.belief.ca_utc_s,
-                            s.universe.flyby.ca_time_s + v * s.universe.uncertainty.ca_time_sigma_s)),
+                            _to_dimorphos(s).ca_time_s + v * s.universe.uncertainty.ca_time_sigma_s)),
     ("universe.uncertainty.ca_distance_offset_sigma", {"normal": {"sigma": 1.0, "mean": 0.0}},
      lambda f, u, g, v, s: (g.belief.ca_distance_km,
-                            s.universe.flyby.ca_distance_km + v * s.universe.uncertainty.ca_distance_sigma_km)),
+                            _to_dimorphos(s).ca_distance_km + v * s.universe.uncertainty.ca_distance_sigma_km)),
     ("universe.flyby.approach_direction", {"direction": {"sigma_deg": 2.0}},
-     lambda f, u, g, v, s: ((*u.geometry.e_v, *g.belief.approach_direction), (*v, *v))),
+     lambda f, u, g, v, s: ((*u.geometry.e_v, *g.belief.approach_direction),
+                            (*v, *_to_dimorphos(s).approach_direction))),
     ("universe.sensors.star_tracker.noise_arcsec", {"normal": {"sigma": 0.2, "relative": True}},
      lambda f, u, g, v, s: (u.sensors._st_sigma_rad, np.radians(np.array(v) / 3600))),
     ("universe.sensors.star_tracker.bias_arcsec", {"normal": {"sigma": 5.0}},

@@ -15,8 +15,9 @@ from scipy.spatial.transform import Rotation
 from contracts.messages import FrameRequest, GroundStep, StepReply, StepRequest, TruthRecord, decode, encode
 from scenario.model import Scenario
 from universe.camera import Body, render_frame
-from universe.config import CameraConfig, PlumeConfig, SpacecraftConfig, UniverseConfig
+from universe.config import BodiesConfig, CameraConfig, FlybyConfig, PlumeConfig, SpacecraftConfig, UniverseConfig
 from universe.dynamics import AttitudeState
+from universe.geometry import dimorphos_line
 from universe.scene import scene_at
 from universe.shapes import ShapeModel
 from universe.simulator import pointing_attitude
@@ -273,8 +274,10 @@ def test_any_attitude_and_rate_gives_valid_frames_and_decodable_finite_truth(q, 
     """Attitudes uniform over rotations and rates up to 1 rad/s, set on the universe's state on a flyby passing from
     55 km down to inside Didymos: every frame on the bus has its size and bit depth, and every truth record is finite
     or absent and survives the bus (encode and decode of the ground step)."""
+    # the on-board grid about ground's C/A distance to Dimorphos must fit: at 1.19 km it passes 11 m from its centre
+    to_dimorphos_km = dimorphos_line(FlybyConfig(ca_distance_km=ca_km), BodiesConfig()).ca_distance_km
     sc = scenario(seed=2, start_s=t0_s, end_s=t0_s + 0.4, flyby={"ca_distance_km": ca_km},
-                  uncertainty={"ca_distance_sigma_km": ca_km / 10})  # the on-board grid must fit
+                  uncertainty={"ca_distance_sigma_km": to_dimorphos_km / 10})
     u = compose.universe(sc)
     u.begin()
     attitude = np.asarray(q) / np.linalg.norm(q)
