@@ -856,6 +856,15 @@ def _lit_agrees(blob: Blob, place: _Place) -> bool:
     return _distance(blob.region_centroid_col_row, place.lit_col_row) <= place.report_radius_px
 
 
+def _may_hold_lit_part(blob: Blob, place: _Place) -> bool:
+    """Whether a blob's box reaches within ``_Place.report_radius_px`` of the lit part's expected centroid: a region
+    holding Dimorphos's lit part holds that part's centroid, which lies there. Its own centroid may not, when dust
+    beside the body pulls it (``_lit_agrees`` is the stricter rule, for choosing among parts)."""
+    c, r, w, h = blob.bbox_col_row_w_h
+    lc, lr = place.lit_col_row
+    return math.hypot(max(c - lc, 0.0, lc - (c + w - 1)), max(r - lr, 0.0, lr - (r + h - 1))) <= place.report_radius_px
+
+
 def _didymos_may_be_out(place: _Place, exp: Expected, n: int) -> bool:
     """Whether Didymos's centre may lie outside the n x n image, Dimorphos being at its predicted place."""
     reach = place.radius_px + exp.orbit_radius_max
@@ -1247,6 +1256,10 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
                                            place, next_label)
     if dimorphos is not None and exp is not None:
         dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
+    if dimorphos is not None and place is not None and not _may_hold_lit_part(dimorphos, place):
+        # no pixel of it lies where Dimorphos's lit part can be: the only candidate, dust cut to its brightest part
+        # where Dimorphos is hidden (behind Didymos's night side), is no Dimorphos
+        dimorphos, deblended = None, False
     # the probability is the choice's, for the region chosen and the parts cut out of it (another region taken
     # after a cut was taken by its light among them all)
     same = (didymos.trimmed_from or didymos.label) == (taken.trimmed_from or taken.label)
