@@ -161,7 +161,7 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     dimorphos = phase_corrected(dimorphos, r_dim, prediction, cfg, camera.fov_deg)
     limb_samples = 0
     if not deblended:  # a deblended object is a peak of its own, not a cut beside the body: no limb sought for it
-        dimorphos, limb_samples = limb_corrected(dimorphos, image.binned, prediction, cfg, camera.fov_deg)
+        dimorphos, limb_samples = limb_corrected(dimorphos, image.binned, prediction, cfg, camera.fov_deg, didymos)
     if pair is not None and age == 0:
         pair = (didymos, dimorphos)  # type: ignore[assignment]
     if probability < cfg.didymos_min_report_probability:

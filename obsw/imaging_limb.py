@@ -208,7 +208,7 @@ def _fit(image: np.ndarray, centre_col_row: tuple[float, float], search_px: floa
 
 
 def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePrediction | None, cfg: ImagingConfig,
-                   fov_deg: float) -> tuple[Blob | None, int]:
+                   fov_deg: float, didymos: Blob | None = None) -> tuple[Blob | None, int]:
     """Dimorphos's blob (its centroid already phase-corrected) with its centroid moved to the centre of its fitted
     limb (``limb_centre``) when the two disagree by more than
     ``limb_fit_max_disagreement_radii`` of its predicted radius: a cut that holds the body's surface alone lies
@@ -219,7 +219,7 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     clearly (``limb_fit_min_contrast``) and gives a centre within the prediction's uncertainty and the centroid noise
     of its place; the circle's centre also replaces a centroid nearer than that when the centroid is off the place by
     more than the same allowance; beyond that phase or search, the lit limb's circle (``_lit_limb_corrected``); the
-    blob unchanged otherwise. With it,
+    blob unchanged otherwise (``didymos``, the blob reported as Didymos, rules out a lit limb inside it). With it,
     the gradient samples the fit took (0 when not fitted), its cost on the FPGA (``obsw.timing``)."""
     if blob is None or not blob.trimmed_from or not cfg.limb_fit or prediction is None \
             or prediction.dimorphos_col_row is None or prediction.dimorphos_radius_px is None \
@@ -235,7 +235,7 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     search = allowed + focal_length_px(fov_deg, n) * math.tan(math.radians(cfg.limb_fit_pointing_margin_deg))
     if phase_angle_deg(prediction.sun_camera, place, fov_deg, n) > cfg.limb_fit_max_phase_deg \
             or search > cfg.limb_fit_max_search_px:
-        return _lit_limb_corrected(blob, image, prediction, cfg, fov_deg, (r_min, r_max), allowed)
+        return _lit_limb_corrected(blob, image, prediction, cfg, fov_deg, (r_min, r_max), allowed, didymos)
     fit = limb_centre(image, place, search, r_min, r_max)
     if fit is None:
         return blob, 0
@@ -255,14 +255,17 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
 
 
 def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePrediction, cfg: ImagingConfig,
-                        fov_deg: float, radii: tuple[float, float], allowed: float) -> tuple[Blob, int]:
+                        fov_deg: float, radii: tuple[float, float], allowed: float,
+                        didymos: Blob | None = None) -> tuple[Blob, int]:
     """``limb_corrected`` where the whole limb is not fitted (a phase beyond ``limb_fit_max_phase_deg``, or a place
     too loose to search): the centre of the lit limb (``lit_limb_centre``) of a radius within ``radii``, searched
     within twice the largest about the cut, replaces the cut's centroid when it steps clearly, lies within
     ``allowed`` of the place, is more than ``lit_limb_min_disagreement_radii`` predicted radii off the cut, and
     touches the cut (the largest disc about its centre within the point-spread function's reach of the cut's box:
     the cut holds a part of the body or of a fan rising from its limb; a circle off it hugs another body's limb,
-    bench seed 64 frame 82); with the samples the fit took."""
+    bench seed 64 frame 82), and is not centred inside Didymos (within the disc of its region's area about its
+    region's centroid: the lit limb of Didymos's own disc beside a Dimorphos cut in front of it touches the cut,
+    star-tracker-outage at C/A+3 s, 26 px off); with the samples the fit took."""
     assert prediction.dimorphos_col_row is not None and prediction.dimorphos_radius_px is not None
     r_min, r_max = radii
     # only the direction of the lit centroid's offset counts: the Sun's in the image
@@ -274,6 +277,8 @@ def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePredicti
             or math.dist(fit.col_row, prediction.dimorphos_col_row) > allowed \
             or math.dist(fit.col_row, blob.centroid_col_row) <= cfg.lit_limb_min_disagreement_radii \
             * prediction.dimorphos_radius_px \
-            or box_distance(blob, fit.col_row) > r_max + psf_reach_px(cfg):
+            or box_distance(blob, fit.col_row) > r_max + psf_reach_px(cfg) \
+            or didymos is not None and math.dist(fit.col_row, didymos.region_centroid_col_row) \
+            < math.sqrt(didymos.area_px / math.pi):
         return blob, fit.samples
     return blob._replace(centroid_col_row=fit.col_row), fit.samples
