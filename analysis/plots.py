@@ -168,7 +168,13 @@ def theta_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section
                 "Bottom: everything minus the chosen candidate's prediction; grey lines are the other candidates.",
                 file_name="los_angle.png")
     tm, truth, ca = data.telemetry, data.truth, figs.true_ca_obt_s
-    meas = [(t, n.los_inertial) for t, n in (tm.navigation if tm else []) if n.los_inertial is not None]
+    # a line of sight without a Dimorphos centroid is Didymos's, standing in for it: not Dimorphos's trajectory
+    meas = [(t, n.los_inertial) for t, n in (tm.navigation if tm else [])
+            if n.los_inertial is not None and n.dimorphos_col_row is not None]
+    stand_ins = sum(1 for _, n in (tm.navigation if tm else [])
+                    if n.los_inertial is not None and n.dimorphos_col_row is None)
+    if stand_ins:
+        s.notes.append(f"{stand_ins} lines of sight of Didymos standing in for Dimorphos's (not shown)")
     if not meas:
         s.missing.append("no NavigationReport with a measured line of sight" if tm else "no telemetry")
         return s

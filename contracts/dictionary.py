@@ -929,7 +929,8 @@ class NavigationReport(Report, service=MISSION_SERVICE, subtype=130):
                                                       bit=0)
     didymos_col_row: tuple[F32, F32] | None = field("Didymos centroid, column row", "binned px", default=None, bit=1)
     dimorphos_area_px: U32 = field("Dimorphos area", "binned px", default=0)
-    los_inertial: UnitVector | None = field("measured line of sight to Dimorphos, inertial", default=None, bit=2)
+    los_inertial: UnitVector | None = field("measured line of sight to Dimorphos, inertial (without a Dimorphos "
+                                            "centroid: Didymos's, standing in for it)", default=None, bit=2)
 
 
 class EstimateReport(Report, service=MISSION_SERVICE, subtype=131):

@@ -127,6 +127,16 @@ class TrackingConfig(Config):
         "hold it; the recognised trajectory carries the LOS motion, so a slope is noise or a misidentified "
         "blob, and one at C/A+48 s drove the pointing 1.2 deg off in 3 s of extrapolation)",
     )
+    didymos_stands_in: bool = Field(
+        True,
+        description="while Dimorphos is not found and its trajectory not yet recognised, Didymos is found, and the "
+        "trajectory's uncertainty on Dimorphos's place in the frame is wider than Dimorphos can be from Didymos (the "
+        "orbit's apparent radius), Didymos's line of sight stands in for Dimorphos's: the loop points on it, and a "
+        "recognition of its own gives the trajectory pointed on and predicted, its uncertainty widened by the "
+        "orbit's radius, until Dimorphos's is recognised. Dimorphos hidden behind or in front of Didymos through "
+        "the approach (orbital phase 180 or 0 deg) lost the target without it: 0 of 16 such geometries of "
+        "bench/envelope.py kept every requirement, 15 with it",
+    )
     propagate_late_measurements: bool = Field(
         True,
         description="a line of sight that reaches the loop after its exposure is taken against the trajectory at "

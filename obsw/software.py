@@ -17,8 +17,12 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
 5. IMAGING: a frame whose readout and FPGA stages are over goes through the software stage of the imaging chain
    (a saturated or blank frame is discarded, ``obsw.frame_quality``); Dimorphos's line of sight, turned inertial with
    the attitude at its exposure and accepted by the false-lock gate (``obsw.lock_gate``), is a measurement from the
-   task's finish on; a line of sight refused in NOMINAL_TRACKING hands over to AUTONOMOUS_TRACKING;
-6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time;
+   task's finish on; a line of sight refused in NOMINAL_TRACKING hands over to AUTONOMOUS_TRACKING; while
+   Dimorphos is not found and its trajectory not yet recognised, Didymos's line of sight stands in for its own
+   where the trajectory knows less than Didymos tells (``_stand_in_los``);
+6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time; Didymos's
+   standing in feed a recognition of their own, whose trajectory, its uncertainty widened by the orbit's radius,
+   is pointed on and predicts the frames until Dimorphos's own is recognised (``_stand_in_trajectory``);
 7. MODES: the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
    on-board estimate, end of flyby);
 8. CONTROL: the tracking loop (with the latest measurement, taken at its exposure) and the PD controller give the
@@ -63,7 +67,7 @@ from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
-from obsw.imaging_geometry import LosKnowledge
+from obsw.imaging_geometry import FramePrediction, LosKnowledge
 from obsw.lock_gate import Estimate, LockGate, Prediction
 from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeManager, TargetDetected, Tick,
                         WheelSaturation)
@@ -91,11 +95,13 @@ AXIS_TOLERANCE = 1e-6  # a body axis farther than this from the wheels' span can
 
 @dataclass(frozen=True, slots=True)
 class Measurement:
-    """Dimorphos's line of sight measured in one frame: inertial unit vector, and the frame's exposure time (OBT)."""
+    """Dimorphos's line of sight measured in one frame: inertial unit vector, and the frame's exposure time (OBT);
+    ``stand_in``: Didymos's, Dimorphos not found (``_stand_in_los``): pointed on, and recognised apart."""
 
     exposure_obt_s: float
     los_inertial: np.ndarray
     frame_id: int
+    stand_in: bool = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -178,6 +184,9 @@ class FlightSoftware:
         self.tracking = TrackingLoop(cfg.tracking, cfg.camera.boresight_body)
         self.trajectory: NominalTrajectory | None = None
         self.recognizer: TrajectoryRecognizer | None = None
+        # the same recognition on Didymos's lines of sight standing in for Dimorphos's (``_stand_in_trajectory``)
+        self.stand_in_recognizer: TrajectoryRecognizer | None = None
+        self._stand_in_cache: tuple[int, NominalTrajectory] | None = None  # (its measurements, its trajectory)
         self.detections: Detections | None = None
         self.bad_pixels: BadPixelMap | None = None  # the camera's bad-pixel map, uploaded by ground
         self.imaging = False
@@ -466,9 +475,13 @@ class FlightSoftware:
         rec = self.recognizer
         if rec is None:  # no nominal trajectory yet: nothing to recognise against
             return NO_WORK
+        stand_ins = self.stand_in_recognizer
         for ev in new:
             m: Measurement = ev.payload  # type: ignore[assignment]
-            rec.add_measurement(m.exposure_obt_s, m.los_inertial)
+            if not m.stand_in:
+                rec.add_measurement(m.exposure_obt_s, m.los_inertial)
+            elif stand_ins is not None:  # Didymos's trajectory apart: it is up to the orbit's radius off Dimorphos's
+                stand_ins.add_measurement(m.exposure_obt_s, m.los_inertial)
         rec.continuous()
         r = self.cfg.recognition
         return Work(candidates=r.grid_time_points * r.grid_distance_points * len(new),
@@ -608,6 +621,9 @@ class FlightSoftware:
                                                       self.trajectory.ca_distance_km)
         if self.recognizer is not None:
             self.recognizer.shift_time(step_s)
+        if self.stand_in_recognizer is not None:
+            self.stand_in_recognizer.shift_time(step_s)
+        self._stand_in_cache = None
         self.autonomous_trajectory, self._autonomous_count = None, -1
         self.tracking.shift_time(step_s)
         self.modes.shift_time(step_s)
@@ -846,6 +862,7 @@ class FlightSoftware:
             raise CommandRejected(RejectReason.BAD_ARGUMENT, f"nominal trajectory: {exc}") from None
         self.trajectory = traj
         self.recognizer = recognizer
+        self.stand_in_recognizer, self._stand_in_cache = TrajectoryRecognizer(traj, self.cfg.recognition), None
         self.schedule.reanchor_ca(traj.ca_time_obt_s)
         self.modes.handle(CaEstimate(traj.ca_time_obt_s), obt)
         self._log.append(f"OBT {obt:.2f} s: nominal trajectory loaded: C/A at OBT {traj.ca_time_obt_s:.2f} s, "
@@ -876,13 +893,15 @@ class FlightSoftware:
             # off in C/A time and then predicts Dimorphos hundreds of px from where it is
             recognised = self._recognised_trajectory()
             prediction = predict_frame(self._attitude_at(meta.obt_s), self.cfg.targets, self.camera,
-                                       self.cfg.imaging, recognised or self.pointing_trajectory(), meta.obt_s,
-                                       self._los_knowledge(recognised, meta.obt_s))
+                                       self.cfg.imaging,
+                                       recognised or self._stand_in_trajectory() or self.pointing_trajectory(),
+                                       meta.obt_s, self._los_knowledge(recognised, meta.obt_s))
             det = process_frame(frame, self.cfg.imaging, self.detections, self.camera, bad_pixels=self.bad_pixels,
                                 prediction=prediction)
         else:
             assert meta.measurement is not None
             det = measured_detections(meta.measurement, self.cfg.imaging, self.camera)
+            prediction = None
         seen_before = self.detections is not None and self.detections.dimorphos is not None
         if seen_before and not any(b.area_px >= self.cfg.imaging.min_body_area_px for b in det.blobs):
             peak = max((b.peak_dn8 - det.background_dn8 for b in det.blobs), default=0)
@@ -891,9 +910,14 @@ class FlightSoftware:
         self.frame_watch.good()
         self.detections = det
         if det.dimorphos is None or det.dimorphos_offset_px is None:
+            stand_in = self._stand_in_los(det, prediction, obt)
+            if stand_in is not None:
+                self._last_seen_obt = obt
+                act.emit(EventKind.MEASUREMENT, Measurement(obt, stand_in, meta.frame_id, stand_in=True))
             self._send(pus.NavigationReport(frame_id=meta.frame_id, dimorphos_col_row=None,
                                             didymos_col_row=_col_row(det.didymos), dimorphos_area_px=0,
-                                            los_inertial=None), obt)
+                                            los_inertial=None if stand_in is None else
+                                            tuple(float(c) for c in stand_in)), obt)
             return det
         d_col, d_row = det.dimorphos_offset_px
         los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
@@ -915,6 +939,28 @@ class FlightSoftware:
                                         didymos_col_row=_col_row(det.didymos), dimorphos_area_px=det.dimorphos.area_px,
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
         return det
+
+    def _stand_in_los(self, det: Detections, prediction: FramePrediction | None, obt: float) -> np.ndarray | None:
+        """Didymos's inertial line of sight, standing in for Dimorphos's while Dimorphos is not found and its
+        trajectory not yet recognised on its own lines of sight: when Didymos is found, and the trajectory's
+        uncertainty on Dimorphos's place is wider than the orbit's apparent radius (Didymos's centroid then bounds
+        where Dimorphos is better than the trajectory does: hidden behind or in front of Didymos, or lost in its
+        glow, Dimorphos is within that radius of it), and Didymos lies where that place and radius allow
+        (``tracking.didymos_stands_in``). Once recognised, Dimorphos's trajectory is the better bound."""
+        rec = self.recognizer
+        if not self.cfg.tracking.didymos_stands_in or det.didymos is None or det.didymos_offset_px is None \
+                or rec is not None and rec.measurement_count >= self.cfg.min_recognition_measurements \
+                or prediction is None or prediction.dimorphos_col_row is None \
+                or prediction.dimorphos_uncertainty_px is None or prediction.orbit_radius_max_px is None:
+            return None
+        reach, spread = prediction.orbit_radius_max_px, prediction.dimorphos_uncertainty_px
+        col, row = det.didymos.centroid_col_row
+        if not reach < spread or math.hypot(col - prediction.dimorphos_col_row[0],
+                                            row - prediction.dimorphos_col_row[1]) > reach + spread:
+            return None
+        d_col, d_row = det.didymos_offset_px
+        return Rotation.from_quat(self._attitude_at(obt)).apply(los_body(d_col, d_row, self.camera.fov_deg,
+                                                                          det.binned_size_px))
 
     def _los_knowledge(self, recognised: NominalTrajectory | None, obt: float) -> LosKnowledge | None:
         """The continuous estimate's line of sight at ``obt``, when the recognised trajectory is that estimate's, with
@@ -942,6 +988,21 @@ class FlightSoftware:
         return reference.prediction(obt, rec.nominal.speed_m_s,
                                     math.hypot(self.cfg.recognition.angle_noise_rad, self._attitude_sigma_rad),
                                     targets.max_axis_ratio * targets.dimorphos_diameter_m / 2)
+
+    def _stand_in_trajectory(self) -> NominalTrajectory | None:
+        """Before Dimorphos's own lines of sight are enough to recognise its trajectory, the one recognised on
+        Didymos's standing in for them, its uncertainties widened by the orbit's radius (Dimorphos is that far from
+        Didymos at most: along the track a C/A time, across it a C/A distance); None without enough of either."""
+        rec, stand_ins, n = self.recognizer, self.stand_in_recognizer, self.cfg.min_recognition_measurements
+        if rec is None or stand_ins is None or rec.measurement_count >= n or stand_ins.measurement_count < n:
+            return None
+        if self._stand_in_cache is None or self._stand_in_cache[0] != stand_ins.measurement_count:
+            traj = stand_ins.continuous_trajectory()
+            r_km = self.cfg.targets.orbit_radius_m / 1e3
+            self._stand_in_cache = (stand_ins.measurement_count, traj.model_copy(update={
+                "ca_time_sigma_s": math.hypot(traj.ca_time_sigma_s, r_km / traj.speed_km_s),
+                "ca_distance_sigma_km": math.hypot(traj.ca_distance_sigma_km, r_km)}))
+        return self._stand_in_cache[1]
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
@@ -1037,9 +1098,10 @@ class FlightSoftware:
         """The trajectory the camera follows: the recognised one, refreshed with every measurement, in
         AUTONOMOUS_TRACKING; the ground's nominal otherwise."""
         rec = self.recognizer
-        if self.modes.mode != Mode.AUTONOMOUS_TRACKING or rec is None \
-                or rec.measurement_count < self.cfg.min_recognition_measurements:
+        if self.modes.mode != Mode.AUTONOMOUS_TRACKING or rec is None:
             return self.trajectory
+        if rec.measurement_count < self.cfg.min_recognition_measurements:
+            return self._stand_in_trajectory() or self.trajectory
         if self.autonomous_trajectory is None or self._autonomous_count != rec.measurement_count:
             self._autonomous_count = rec.measurement_count
             self.autonomous_trajectory = rec.continuous_trajectory() if self.cfg.autonomy_estimate == "continuous" \
