@@ -169,10 +169,9 @@ def theta_section(data: RunData, figs: RunFigures, cfg: ReportConfig) -> Section
                 file_name="los_angle.png")
     tm, truth, ca = data.telemetry, data.truth, figs.true_ca_obt_s
     # a line of sight without a Dimorphos centroid is Didymos's, standing in for it: not Dimorphos's trajectory
-    meas = [(t, n.los_inertial) for t, n in (tm.navigation if tm else [])
-            if n.los_inertial is not None and n.dimorphos_col_row is not None]
-    stand_ins = sum(1 for _, n in (tm.navigation if tm else [])
-                    if n.los_inertial is not None and n.dimorphos_col_row is None)
+    with_los = [(t, n) for t, n in (tm.navigation if tm else []) if n.los_inertial is not None]
+    meas = [(t, n.los_inertial) for t, n in with_los if n.dimorphos_col_row is not None]
+    stand_ins = len(with_los) - len(meas)
     if stand_ins:
         s.notes.append(f"{stand_ins} lines of sight of Didymos standing in for Dimorphos's (not shown)")
     if not meas:

@@ -860,9 +860,7 @@ def _may_hold_lit_part(blob: Blob, place: _Place) -> bool:
     """Whether a blob's box reaches within ``_Place.report_radius_px`` of the lit part's expected centroid: a region
     holding Dimorphos's lit part holds that part's centroid, which lies there. Its own centroid may not, when dust
     beside the body pulls it (``_lit_agrees`` is the stricter rule, for choosing among parts)."""
-    c, r, w, h = blob.bbox_col_row_w_h
-    lc, lr = place.lit_col_row
-    return math.hypot(max(c - lc, 0.0, lc - (c + w - 1)), max(r - lr, 0.0, lr - (r + h - 1))) <= place.report_radius_px
+    return box_distance(blob, place.lit_col_row) <= place.report_radius_px
 
 
 def _didymos_may_be_out(place: _Place, exp: Expected, n: int) -> bool:

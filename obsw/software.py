@@ -919,9 +919,7 @@ class FlightSoftware:
                                             los_inertial=None if stand_in is None else
                                             tuple(float(c) for c in stand_in)), obt)
             return det
-        d_col, d_row = det.dimorphos_offset_px
-        los_b = los_body(d_col, d_row, self.camera.fov_deg, det.binned_size_px)
-        los_i = Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
+        los_i = self._inertial_los(det.dimorphos_offset_px, det.binned_size_px, obt)
         gate = self.lock_gate.check(self._recognised_trajectory(), obt, los_i, self._prediction(obt))
         if not gate.accepted:
             if self.lock_gate.run == 1:
@@ -947,9 +945,8 @@ class FlightSoftware:
         where Dimorphos is better than the trajectory does: hidden behind or in front of Didymos, or lost in its
         glow, Dimorphos is within that radius of it), and Didymos lies where that place and radius allow
         (``tracking.didymos_stands_in``). Once recognised, Dimorphos's trajectory is the better bound."""
-        rec = self.recognizer
         if not self.cfg.tracking.didymos_stands_in or det.didymos is None or det.didymos_offset_px is None \
-                or rec is not None and rec.measurement_count >= self.cfg.min_recognition_measurements \
+                or self._recognition_trusted() \
                 or prediction is None or prediction.dimorphos_col_row is None \
                 or prediction.dimorphos_uncertainty_px is None or prediction.orbit_radius_max_px is None:
             return None
@@ -958,9 +955,12 @@ class FlightSoftware:
         if not reach < spread or math.hypot(col - prediction.dimorphos_col_row[0],
                                             row - prediction.dimorphos_col_row[1]) > reach + spread:
             return None
-        d_col, d_row = det.didymos_offset_px
-        return Rotation.from_quat(self._attitude_at(obt)).apply(los_body(d_col, d_row, self.camera.fov_deg,
-                                                                          det.binned_size_px))
+        return self._inertial_los(det.didymos_offset_px, det.binned_size_px, obt)
+
+    def _inertial_los(self, offset_px: tuple[float, float], binned_size_px: int, obt: float) -> np.ndarray:
+        """The inertial line of sight of an image offset from the centre, with the attitude at exposure ``obt``."""
+        los_b = los_body(offset_px[0], offset_px[1], self.camera.fov_deg, binned_size_px)
+        return Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
 
     def _los_knowledge(self, recognised: NominalTrajectory | None, obt: float) -> LosKnowledge | None:
         """The continuous estimate's line of sight at ``obt``, when the recognised trajectory is that estimate's, with
@@ -993,8 +993,9 @@ class FlightSoftware:
         """Before Dimorphos's own lines of sight are enough to recognise its trajectory, the one recognised on
         Didymos's standing in for them, its uncertainties widened by the orbit's radius (Dimorphos is that far from
         Didymos at most: along the track a C/A time, across it a C/A distance); None without enough of either."""
-        rec, stand_ins, n = self.recognizer, self.stand_in_recognizer, self.cfg.min_recognition_measurements
-        if rec is None or stand_ins is None or rec.measurement_count >= n or stand_ins.measurement_count < n:
+        stand_ins = self.stand_in_recognizer
+        if self.recognizer is None or self._recognition_trusted() or stand_ins is None \
+                or stand_ins.measurement_count < self.cfg.min_recognition_measurements:
             return None
         if self._stand_in_cache is None or self._stand_in_cache[0] != stand_ins.measurement_count:
             traj = stand_ins.continuous_trajectory()
@@ -1004,10 +1005,15 @@ class FlightSoftware:
                 "ca_distance_sigma_km": math.hypot(traj.ca_distance_sigma_km, r_km)}))
         return self._stand_in_cache[1]
 
+    def _recognition_trusted(self) -> bool:
+        """Whether Dimorphos's own lines of sight are enough for its recognised trajectory to be trusted."""
+        return self.recognizer is not None \
+            and self.recognizer.measurement_count >= self.cfg.min_recognition_measurements
+
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
         rec = self.recognizer
-        if rec is None or rec.measurement_count < self.cfg.min_recognition_measurements:
+        if rec is None or not self._recognition_trusted():
             return None
         return rec.continuous_trajectory() if self.cfg.autonomy_estimate == "continuous" else rec.best_trajectory()
 
@@ -1100,7 +1106,7 @@ class FlightSoftware:
         rec = self.recognizer
         if self.modes.mode != Mode.AUTONOMOUS_TRACKING or rec is None:
             return self.trajectory
-        if rec.measurement_count < self.cfg.min_recognition_measurements:
+        if not self._recognition_trusted():
             return self._stand_in_trajectory() or self.trajectory
         if self.autonomous_trajectory is None or self._autonomous_count != rec.measurement_count:
             self._autonomous_count = rec.measurement_count
