@@ -127,6 +127,15 @@ class TrackingConfig(Config):
         "hold it; the recognised trajectory carries the LOS motion, so a slope is noise or a misidentified "
         "blob, and one at C/A+48 s drove the pointing 1.2 deg off in 3 s of extrapolation)",
     )
+    recognised_when_unseen_s: float | None = Field(
+        3.0,
+        gt=0,
+        description="in NOMINAL_TRACKING, and in ACQUISITION after the target was lost, once Dimorphos has not been "
+        "seen for this long and its trajectory is recognised on board, the camera points on the recognised "
+        "trajectory until it is seen again, s (None: on ground's nominal, as the paper). Dimorphos hidden behind "
+        "Didymos after its trajectory was recognised (bench/envelope.py roll 0 phase 150, roll 180 phase 30) drifted "
+        "0.5-1.5 deg on a nominal 6 s off in C/A time and was lost; 3 s: the loop's extrapolation_limit_s",
+    )
     didymos_stands_in: bool = Field(
         True,
         description="while Dimorphos is not found and its trajectory not yet recognised, Didymos is found, and the "
@@ -574,6 +583,15 @@ class ImagingConfig(Config):
         "a thin crescent's circle sits up to 0.4 of its radius sunward of the centre (it hugs the limb's best-lit "
         "middle), a cut of the root of a fan of ejecta beside it 1.3-2 radii off (bench/imaging.py seeds 31, 35, 37 "
         "at 101-118 deg: 20-25 px off, the circle 4-7 px)",
+    )
+    unlit_cut_refused: bool = Field(
+        True,
+        description="where the lit limb is sought (beyond limb_fit_max_phase_deg), a cut off the predicted place (by "
+        "more than its uncertainty and centroid_noise_px) is not reported as Dimorphos when no lit limb steps clearly "
+        "(limb_fit_min_contrast) about the place either: at 130-165 deg of phase a crescent too thin to see leaves "
+        "the bright root of the ejecta beside its dark disc as the brightest cut, 15-22 px off (bench/envelope.py's "
+        "roll-180 row: 22 such reports in 3 cells, lit-limb contrast 0.7-2.6 at the place against 4-50 where a "
+        "crescent is seen)",
     )
     limb_fit_max_search_px: float = Field(
         24.0,

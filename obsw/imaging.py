@@ -162,6 +162,9 @@ def process_frame(frame: np.ndarray, cfg: ImagingConfig, previous: Detections | 
     limb_samples = 0
     if not deblended:  # a deblended object is a peak of its own, not a cut beside the body: no limb sought for it
         dimorphos, limb_samples = limb_corrected(dimorphos, image.binned, prediction, cfg, camera.fov_deg, didymos)
+        if dimorphos is None and pair is not None and age == 0:  # the cut refused: as if Dimorphos were hidden
+            pair = None if previous is None or previous.pair is None else previous.pair
+            age = 0 if pair is None else previous.pair_age_frames + 1  # type: ignore[union-attr]
     if pair is not None and age == 0:
         pair = (didymos, dimorphos)  # type: ignore[assignment]
     if probability < cfg.didymos_min_report_probability:

@@ -34,6 +34,11 @@ the circle's centre lies 4-7 px off. It is searched about the cut and taken only
 ``lit_limb_min_disagreement_radii`` off it (a circle smaller than the body hugs the middle of its lit limb, sunward
 of its centre) and the body's largest disc about it touches the cut (a circle off the cut hugs another limb: bench
 seed 64 frame 82, Didymos's, 35 px from a cut 1.5 px off Dimorphos's centre).
+
+Where no lit limb is found about the cut, the cut lies off the place, and no lit limb steps about the place either,
+the cut is not Dimorphos and is refused (``ImagingConfig.unlit_cut_refused``): beyond 130 deg of phase a crescent can
+be too thin to see, and the bright root of the ejecta just beyond its dark disc is then the brightest cut near the
+place (bench/envelope.py's roll-180 row: 19-22 px off; configs/scenarios/night-side-pass.yaml).
 """
 
 from __future__ import annotations
@@ -256,7 +261,7 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
 
 def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePrediction, cfg: ImagingConfig,
                         fov_deg: float, radii: tuple[float, float], allowed: float,
-                        didymos: Blob | None = None) -> tuple[Blob, int]:
+                        didymos: Blob | None = None) -> tuple[Blob | None, int]:
     """``limb_corrected`` where the whole limb is not fitted (a phase beyond ``limb_fit_max_phase_deg``, or a place
     too loose to search): the centre of the lit limb (``lit_limb_centre``) of a radius within ``radii``, searched
     within twice the largest about the cut, replaces the cut's centroid when it steps clearly, lies within
@@ -280,5 +285,23 @@ def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePredicti
             or box_distance(blob, fit.col_row) > r_max + psf_reach_px(cfg) \
             or didymos is not None and math.dist(fit.col_row, didymos.region_centroid_col_row) \
             < math.sqrt(didymos.area_px / math.pi):
+        if cfg.unlit_cut_refused and math.dist(blob.centroid_col_row, prediction.dimorphos_col_row) > allowed:
+            return _unless_unlit(blob, image, prediction, cfg, radii, allowed, sun, fit.samples)
         return blob, fit.samples
     return blob._replace(centroid_col_row=fit.col_row), fit.samples
+
+
+def _unless_unlit(blob: Blob, image: np.ndarray, prediction: FramePrediction, cfg: ImagingConfig,
+                  radii: tuple[float, float], allowed: float, sun: tuple[float, float],
+                  samples: int) -> tuple[Blob | None, int]:
+    """A cut off the place whose lit limb was not found: None (not Dimorphos) when no lit limb steps clearly about
+    the place either (``ImagingConfig.unlit_cut_refused``): a crescent too thin to see beside the ejecta's bright
+    root leaves the root as the brightest cut; the cut otherwise. With the samples both fits took."""
+    assert prediction.dimorphos_col_row is not None
+    at_place = lit_limb_centre(image, prediction.dimorphos_col_row, allowed, radii[0], radii[1], sun)
+    if at_place is None:
+        return blob, samples
+    samples += at_place.samples
+    if at_place.score < cfg.limb_fit_min_contrast * at_place.window_median:
+        return None, samples
+    return blob, samples

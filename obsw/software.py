@@ -27,7 +27,8 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
    on-board estimate, end of flyby);
 8. CONTROL: the tracking loop (with the latest measurement, taken at its exposure) and the PD controller give the
    wheel torques over the wheels in use (SAFE holds the attitude of its entry); a wheel reaching its momentum limit
-   fails a parameter check;
+   fails a parameter check; the loop follows ground's nominal until AUTONOMOUS_TRACKING, except while Dimorphos, its
+   trajectory recognised, goes unseen (``_unseen_since_recognised``): then the recognised trajectory;
 9. FDIR: a failed parameter check is reported and recovered (SAFE); failed wheels are found
    (``obsw.wheel_health``); the service 12 definitions are checked (``obsw.monitoring``); the service 19 actions of
    the events raised are run (``obsw.event_action``);
@@ -1102,12 +1103,30 @@ class FlightSoftware:
     # -- control -------------------------------------------------------------------------------------------
     def pointing_trajectory(self) -> NominalTrajectory | None:
         """The trajectory the camera follows: the recognised one, refreshed with every measurement, in
-        AUTONOMOUS_TRACKING; the ground's nominal otherwise."""
+        AUTONOMOUS_TRACKING, and in NOMINAL_TRACKING or ACQUISITION while Dimorphos, once recognised, goes unseen
+        (``_unseen_since_recognised``); the ground's nominal otherwise."""
         rec = self.recognizer
-        if self.modes.mode != Mode.AUTONOMOUS_TRACKING or rec is None:
+        if rec is None:
             return self.trajectory
+        if self.modes.mode != Mode.AUTONOMOUS_TRACKING:
+            return self._autonomous_trajectory() if self._unseen_since_recognised() else self.trajectory
         if not self._recognition_trusted():
             return self._stand_in_trajectory() or self.trajectory
+        return self._autonomous_trajectory()
+
+    def _unseen_since_recognised(self) -> bool:
+        """Whether, in NOMINAL_TRACKING or ACQUISITION, Dimorphos has gone unseen for
+        ``tracking.recognised_when_unseen_s`` since it was last seen, its trajectory recognised: ground's nominal
+        alone would carry the pointing away (its C/A seconds off) before the target is found again."""
+        limit = self.cfg.tracking.recognised_when_unseen_s
+        return limit is not None and self._last_seen_obt is not None and self._req is not None \
+            and self.modes.mode in (Mode.NOMINAL_TRACKING, Mode.ACQUISITION) and self._recognition_trusted() \
+            and self._tick_s() - self._last_seen_obt >= limit
+
+    def _autonomous_trajectory(self) -> NominalTrajectory:
+        """The recognised trajectory pointed on, refreshed with every measurement (trusted: ``_recognition_trusted``)."""
+        rec = self.recognizer
+        assert rec is not None
         if self.autonomous_trajectory is None or self._autonomous_count != rec.measurement_count:
             self._autonomous_count = rec.measurement_count
             self.autonomous_trajectory = rec.continuous_trajectory() if self.cfg.autonomy_estimate == "continuous" \
