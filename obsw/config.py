@@ -586,12 +586,13 @@ class ImagingConfig(Config):
     )
     unlit_cut_refused: bool = Field(
         True,
-        description="where the lit limb is sought (beyond limb_fit_max_phase_deg), a cut off the predicted place (by "
-        "more than its uncertainty and centroid_noise_px) is not reported as Dimorphos when no lit limb steps clearly "
-        "(limb_fit_min_contrast) about the place either: at 130-165 deg of phase a crescent too thin to see leaves "
-        "the bright root of the ejecta beside its dark disc as the brightest cut, 15-22 px off (bench/envelope.py's "
-        "roll-180 row: 22 such reports in 3 cells, lit-limb contrast 0.7-2.6 at the place against 4-50 where a "
-        "crescent is seen)",
+        description="a cut off the predicted place (by more than its uncertainty and centroid_noise_px) whose limb is "
+        "not found on the place (the lit limb beyond limb_fit_max_phase_deg, the whole limb below) is not reported "
+        "as Dimorphos when no lit limb steps clearly (limb_fit_min_contrast) about the place either: at 130-165 deg "
+        "of phase a crescent too thin to see leaves the bright root of the ejecta beside its dark disc as the "
+        "brightest cut, 15-22 px off (bench/envelope.py's roll-180 row: 22 such reports in 3 cells, lit-limb "
+        "contrast 0.7-2.6 at the place against 4-50 where a crescent is seen); an eclipsed Dimorphos beside the "
+        "plume's edge likewise (worst-late-near's envelope, roll 0 phase 270: 18.6 px)",
     )
     limb_fit_max_search_px: float = Field(
         24.0,

@@ -35,10 +35,12 @@ the circle's centre lies 4-7 px off. It is searched about the cut and taken only
 of its centre) and the body's largest disc about it touches the cut (a circle off the cut hugs another limb: bench
 seed 64 frame 82, Didymos's, 35 px from a cut 1.5 px off Dimorphos's centre).
 
-Where no lit limb is found about the cut, the cut lies off the place, and no lit limb steps about the place either,
-the cut is not Dimorphos and is refused (``ImagingConfig.unlit_cut_refused``): beyond 130 deg of phase a crescent can
-be too thin to see, and the bright root of the ejecta just beyond its dark disc is then the brightest cut near the
-place (bench/envelope.py's roll-180 row: 19-22 px off; configs/scenarios/night-side-pass.yaml).
+Where the cut lies off the place, its limb (the whole limb below limb_fit_max_phase_deg, the lit limb beyond) is not
+found on the place, and no lit limb steps about the place either, the cut is not Dimorphos and is refused
+(``ImagingConfig.unlit_cut_refused``): beyond 130 deg of phase a crescent can be too thin to see, and the bright root
+of the ejecta just beyond its dark disc is then the brightest cut near the place (bench/envelope.py's roll-180 row:
+19-22 px off; configs/scenarios/night-side-pass.yaml); an eclipsed Dimorphos leaves the plume's edge beside it
+(worst-late-near's envelope, roll 0 phase 270: 18.6 px off).
 """
 
 from __future__ import annotations
@@ -223,8 +225,9 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     (``limb_fit_min_radius_px``), lit at a low enough phase (``limb_fit_max_phase_deg``), and the limb found steps
     clearly (``limb_fit_min_contrast``) and gives a centre within the prediction's uncertainty and the centroid noise
     of its place; the circle's centre also replaces a centroid nearer than that when the centroid is off the place by
-    more than the same allowance; beyond that phase or search, the lit limb's circle (``_lit_limb_corrected``); the
-    blob unchanged otherwise (``didymos``, the blob reported as Didymos, rules out a lit limb inside it). With it,
+    more than the same allowance; beyond that phase or search, the lit limb's circle (``_lit_limb_corrected``); None
+    for a cut off the place with no limb on it where no lit limb steps about the place either (``_unless_unlit``);
+    the blob unchanged otherwise (``didymos``, the blob reported as Didymos, rules out a lit limb inside it). With it,
     the gradient samples the fit took (0 when not fitted), its cost on the FPGA (``obsw.timing``)."""
     if blob is None or not blob.trimmed_from or not cfg.limb_fit or prediction is None \
             or prediction.dimorphos_col_row is None or prediction.dimorphos_radius_px is None \
@@ -244,12 +247,15 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     fit = limb_centre(image, place, search, r_min, r_max)
     if fit is None:
         return blob, 0
-    if fit.score < cfg.limb_fit_min_contrast * fit.window_median:
-        return blob, fit.samples
     centre = fit.col_row  # the body's own: its outline steps all round (module docstring), no phase correction
     # it must be where the prediction puts Dimorphos: a circle near the cut but off the place is another body's limb
     # or the plume's edge (the nominal flyby at C/A+3 s: 12.6 px from a place known to 5.2 px, 13 px off)
-    if math.dist(centre, place) > allowed:
+    if fit.score < cfg.limb_fit_min_contrast * fit.window_median or math.dist(centre, place) > allowed:
+        if cfg.unlit_cut_refused and math.dist(blob.centroid_col_row, place) > allowed:
+            # no limb at the place, the cut off it: refused unless a lit limb steps about the place (an eclipsed
+            # Dimorphos beside the plume's edge: worst-late-near's envelope, roll 0 phase 270, 18.6 px off)
+            sun = phase_offset_px(prediction.sun_camera, place, 1.0, fov_deg, n)
+            return _unless_unlit(blob, image, prediction, cfg, (r_min, r_max), allowed, sun, fit.samples)
         return blob, fit.samples
     # a cut off the place while the circle is on it holds more than the body, however near the two are (run 881 of
     # the nominal campaign: the cut 7.5 px from a place known to 4 px, 11.1 px off; the circle 2 px from it)

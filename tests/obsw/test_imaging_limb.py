@@ -464,3 +464,24 @@ def test_the_root_of_the_ejecta_beside_an_unseen_crescent_is_not_reported(radius
     image, prediction, cut, _ = _crescent_beside_its_fan(radius, phase, sun_az, fan_turn, 1.0, seed)
     seen, _ = limb_corrected(cut, image, prediction, CFG, 2.9)
     assert seen is not None
+
+
+@settings(max_examples=20, deadline=None)
+@given(radius=st.floats(11.0, 16.0), phase=st.floats(35.0, 85.0), sun_az=st.floats(0.0, 2.0 * math.pi),
+       fan_turn=st.floats(math.radians(90.0), math.radians(270.0)), seed=st.integers(0, 2**16))
+def test_the_root_of_the_ejecta_beside_an_eclipsed_body_is_not_reported(radius: float, phase: float, sun_az: float,
+                                                                         fan_turn: float, seed: int) -> None:
+    """Below 90 deg of phase, where the whole limb is fitted: a sphere of 11-16 px radius in Didymos's shadow (its best-lit point 1 % of
+    its fan's root), a cut of the fan's root 1.6 radii out: neither its limb nor a lit limb steps about the place, and
+    the cut is not reported (worst-late-near's envelope, roll 0 phase 270: Dimorphos eclipsed at C/A beside the
+    plume's edge, reported 18.6 px off); the same cut beside the sphere lit is reported. Measured edge: at 10 px radius
+    and 30-35 deg, the fan 90 deg from the Sun, the lit limb's circle about the place, at its search square's corner,
+    stepped 4.1 times on the fan's root and the cut was kept (0 of 1,500 random frames of 10-16 px)."""
+    image, prediction, cut, _ = _crescent_beside_its_fan(radius, phase, sun_az, fan_turn, 0.004, seed)
+    refused, samples = limb_corrected(cut, image, prediction, CFG, 2.9)
+    assert refused is None and samples > 0
+    kept, _ = limb_corrected(cut, image, prediction, CFG.model_copy(update={"unlit_cut_refused": False}), 2.9)
+    assert kept is not None
+    image, prediction, cut, _ = _crescent_beside_its_fan(radius, phase, sun_az, fan_turn, 1.0, seed)
+    seen, _ = limb_corrected(cut, image, prediction, CFG, 2.9)
+    assert seen is not None
