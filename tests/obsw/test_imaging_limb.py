@@ -300,6 +300,22 @@ def _lit_sphere(size: int, col: float, row: float, radius: float, sun: np.ndarra
     return out / sub ** 2
 
 
+def _sphere_and_wedge(radius: float, phase: float, sun_az: float, fan_turn: float
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
+    """A Lambert sphere of ``radius`` px centred in a 128 px image at ``phase`` deg, the Sun ``sun_az`` rad round from
+    +columns, and a 30 deg wedge from its limb turned ``fan_turn`` rad from the Sun: the Sun (camera axes), the
+    sphere's shading, each pixel's distance from the centre, the wedge's pixels, the wedge's axis (rad)."""
+    size, c, r = 128, 64.0, 64.0
+    g = math.radians(phase)
+    sun = np.array([math.sin(g) * math.cos(sun_az), math.sin(g) * math.sin(sun_az), -math.cos(g)])
+    body = _lit_sphere(size, c, r, radius, sun)
+    rows, cols = np.indices((size, size), dtype=np.float64)
+    axis = sun_az + fan_turn
+    dist = np.hypot(cols - c, rows - r)
+    off_axis = np.abs((np.arctan2(rows - r, cols - c) - axis + math.pi) % (2.0 * math.pi) - math.pi)
+    return sun, body, dist, (off_axis <= math.radians(15.0)) & (dist >= radius), axis
+
+
 @settings(max_examples=25, deadline=None)
 @given(radius=st.floats(1.5 * CFG.limb_fit_min_radius_px, 18.0), phase=st.floats(95.0, 130.0), sun_az=st.floats(0.0, 2.0 * math.pi),
        fan_turn=st.floats(math.radians(60.0), math.radians(300.0)), fan=st.floats(0.2, 0.7),
@@ -313,17 +329,9 @@ def test_the_lit_limb_of_a_crescent_beside_a_fan_of_ejecta_is_found(radius: floa
     the Sun), searched from the fan's brightest part: the lit limb's circle has its centre on the body, within the
     radii searched (R - R / 1.5) plus a pixel plus the half-diagonal of the search's finest grid cell (0.35 px) of its
     centre: the circle hugs the limb's middle, never the fan."""
-    size = 128
     c, r = 64.0, 64.0
-    g = math.radians(phase)
-    sun = np.array([math.sin(g) * math.cos(sun_az), math.sin(g) * math.sin(sun_az), -math.cos(g)])
-    body = _lit_sphere(size, c, r, radius, sun)
-    rows, cols = np.indices((size, size), dtype=np.float64)
-    axis = sun_az + fan_turn
-    dist = np.hypot(cols - c, rows - r)
-    off_axis = np.abs((np.arctan2(rows - r, cols - c) - axis + math.pi) % (2.0 * math.pi) - math.pi)
-    glow = np.where((off_axis <= math.radians(15.0)) & (dist >= radius), fan * body.max() * radius
-                    / np.maximum(dist, radius), 0.0)
+    sun, body, dist, wedge, axis = _sphere_and_wedge(radius, phase, sun_az, fan_turn)
+    glow = np.where(wedge, fan * body.max() * radius / np.maximum(dist, radius), 0.0)
     image = gaussian_filter(1000.0 * (body + glow * (body == 0.0)), psf)
     root = (c + 1.5 * radius * math.cos(axis), r + 1.5 * radius * math.sin(axis))  # where a cut of the fan lies
     fit = lit_limb_centre(image, root, 2.0 * 1.5 * radius, radius / 1.5, radius * 1.5,
@@ -424,15 +432,9 @@ def _crescent_beside_its_fan(radius: float, phase: float, sun_az: float, fan_tur
     1000 DN) with a 30 deg wedge of ejecta rising from its limb, 400 DN at its root fading as 1 / distance, over a
     20 DN background with 3 DN of noise; the prediction (place 1 px off the centre, known to 3 px) and a cut of the
     fan's root as the chain would report it; and the body's centre."""
-    size, c, r = 128, 64.0, 64.0
-    g = math.radians(phase)
-    sun = np.array([math.sin(g) * math.cos(sun_az), math.sin(g) * math.sin(sun_az), -math.cos(g)])
-    body = _lit_sphere(size, c, r, radius, sun)
-    rows, cols = np.indices((size, size), dtype=np.float64)
-    axis = sun_az + fan_turn
-    dist = np.hypot(cols - c, rows - r)
-    off_axis = np.abs((np.arctan2(rows - r, cols - c) - axis + math.pi) % (2.0 * math.pi) - math.pi)
-    glow = np.where((off_axis <= math.radians(15.0)) & (dist >= radius), 400.0 * radius / np.maximum(dist, radius), 0.0)
+    c, r = 64.0, 64.0
+    sun, body, dist, wedge, axis = _sphere_and_wedge(radius, phase, sun_az, fan_turn)
+    glow = np.where(wedge, 400.0 * radius / np.maximum(dist, radius), 0.0)
     image = gaussian_filter(1000.0 * lit * body / max(float(body.max()), 1e-12) + glow * (body == 0.0), 0.8)
     image = 20.0 + image + np.random.default_rng(seed).normal(0.0, 3.0, image.shape)
     root = (c + 1.6 * radius * math.cos(axis), r + 1.6 * radius * math.sin(axis))
