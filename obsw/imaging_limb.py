@@ -251,12 +251,10 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     # it must be where the prediction puts Dimorphos: a circle near the cut but off the place is another body's limb
     # or the plume's edge (the nominal flyby at C/A+3 s: 12.6 px from a place known to 5.2 px, 13 px off)
     if fit.score < cfg.limb_fit_min_contrast * fit.window_median or math.dist(centre, place) > allowed:
-        if cfg.unlit_cut_refused and math.dist(blob.centroid_col_row, place) > allowed:
-            # no limb at the place, the cut off it: refused unless a lit limb steps about the place (an eclipsed
-            # Dimorphos beside the plume's edge: worst-late-near's envelope, roll 0 phase 270, 18.6 px off)
-            sun = phase_offset_px(prediction.sun_camera, place, 1.0, fov_deg, n)
-            return _unless_unlit(blob, image, prediction, cfg, (r_min, r_max), allowed, sun, fit.samples)
-        return blob, fit.samples
+        # no limb at the place (an eclipsed Dimorphos beside the plume's edge: worst-late-near's envelope, roll 0
+        # phase 270, 18.6 px off)
+        sun = phase_offset_px(prediction.sun_camera, place, 1.0, fov_deg, n)
+        return _unless_unlit(blob, image, prediction, cfg, (r_min, r_max), allowed, sun, fit.samples)
     # a cut off the place while the circle is on it holds more than the body, however near the two are (run 881 of
     # the nominal campaign: the cut 7.5 px from a place known to 4 px, 11.1 px off; the circle 2 px from it)
     near = cfg.limb_fit_max_disagreement_radii * prediction.dimorphos_radius_px
@@ -291,19 +289,20 @@ def _lit_limb_corrected(blob: Blob, image: np.ndarray, prediction: FramePredicti
             or box_distance(blob, fit.col_row) > r_max + psf_reach_px(cfg) \
             or didymos is not None and math.dist(fit.col_row, didymos.region_centroid_col_row) \
             < math.sqrt(didymos.area_px / math.pi):
-        if cfg.unlit_cut_refused and math.dist(blob.centroid_col_row, prediction.dimorphos_col_row) > allowed:
-            return _unless_unlit(blob, image, prediction, cfg, radii, allowed, sun, fit.samples)
-        return blob, fit.samples
+        return _unless_unlit(blob, image, prediction, cfg, radii, allowed, sun, fit.samples)
     return blob._replace(centroid_col_row=fit.col_row), fit.samples
 
 
 def _unless_unlit(blob: Blob, image: np.ndarray, prediction: FramePrediction, cfg: ImagingConfig,
                   radii: tuple[float, float], allowed: float, sun: tuple[float, float],
                   samples: int) -> tuple[Blob | None, int]:
-    """A cut off the place whose lit limb was not found: None (not Dimorphos) when no lit limb steps clearly about
-    the place either (``ImagingConfig.unlit_cut_refused``): a crescent too thin to see beside the ejecta's bright
-    root leaves the root as the brightest cut; the cut otherwise. With the samples both fits took."""
+    """A cut whose limb was not found on the place: None (not Dimorphos) when it lies off the place (by more than
+    ``allowed``) and no lit limb steps clearly about the place either (``ImagingConfig.unlit_cut_refused``): a
+    crescent too thin to see beside the ejecta's bright root leaves the root as the brightest cut; the cut
+    otherwise. With the samples the fits took (``samples``, those before, included)."""
     assert prediction.dimorphos_col_row is not None
+    if not cfg.unlit_cut_refused or math.dist(blob.centroid_col_row, prediction.dimorphos_col_row) <= allowed:
+        return blob, samples
     at_place = lit_limb_centre(image, prediction.dimorphos_col_row, allowed, radii[0], radii[1], sun)
     if at_place is None:
         return blob, samples

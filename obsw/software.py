@@ -980,7 +980,7 @@ class FlightSoftware:
         sight at ``obt``, once the recognition is trusted."""
         rec = self.recognizer
         newest = None if rec is None else rec.last_measurement_obt_s
-        if rec is None or newest is None or rec.measurement_count < self.cfg.min_recognition_measurements:
+        if rec is None or newest is None or not self._recognition_trusted():
             return None
         self.lock_gate.references.add(Estimate(newest, rec.continuous_estimate()))
         reference = self.lock_gate.reference(obt)
@@ -1013,10 +1013,7 @@ class FlightSoftware:
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
-        rec = self.recognizer
-        if rec is None or not self._recognition_trusted():
-            return None
-        return rec.continuous_trajectory() if self.cfg.autonomy_estimate == "continuous" else rec.best_trajectory()
+        return self._autonomous_trajectory() if self._recognition_trusted() else None
 
     def _frame_anomaly(self, kind: pus.FrameAnomaly, frame_id: int, statistic: float, now: float) -> None:
         """Count a discarded frame; report the first of a run of them."""
@@ -1092,8 +1089,7 @@ class FlightSoftware:
 
     def _mode_by_events(self, obt: float, detected: bool) -> None:
         m = self.modes
-        if self.trajectory is not None and m.mode == Mode.NOMINAL_TRACKING and self.recognizer is not None \
-                and self.recognizer.measurement_count >= self.cfg.min_recognition_measurements:
+        if self.trajectory is not None and m.mode == Mode.NOMINAL_TRACKING and self._recognition_trusted():
             # C/A-30 s is judged on the on-board estimate, which absorbs both ephemeris and clock errors
             self._mode_event(m.handle(CaEstimate(self.best_estimate()[0]), obt), obt)
         if detected:
