@@ -136,6 +136,41 @@ class TrackingConfig(Config):
         "Didymos after its trajectory was recognised (bench/envelope.py roll 0 phase 150, roll 180 phase 30) drifted "
         "0.5-1.5 deg on a nominal 6 s off in C/A time and was lost; 3 s: the loop's extrapolation_limit_s",
     )
+    didymos_cross_check: bool = Field(
+        True,
+        description="Didymos's line of sight from every frame that finds it is recognised apart, and Dimorphos's "
+        "recognised trajectory is trusted only while the two agree: C/A times within the largest distance between "
+        "the two centroids (the orbit's radius plus both bodies' largest apparent radii, targets) over the speed, "
+        "C/A distances within that distance, each plus cross_check_sigma of their uncertainties combined; while it "
+        "is not trusted, Didymos stands in, pointed on and predicting the frames with its own trajectory. A "
+        "recognition 0.4 s off at C/A-159 s was dragged 14 s off by the next lines of sight, of Dimorphos beside "
+        "Didymos, trusted by their count, and pointed on: the target was lost (60 % in view; bench/envelope.py "
+        "configs/scenarios/worst-late-near.yaml roll 315 phase 330)",
+    )
+    cross_check_sigma: float = Field(
+        3.0, gt=0, description="the cross-check's allowance beyond the largest distance between the centroids, in "
+        "combined one-sigma uncertainties of the two recognised trajectories, sigma",
+    )
+    cross_check_recent: int = Field(
+        20, ge=1, description="Didymos's lines of sight, the most recent, whose fit judges whether its recognition "
+        "may contradict Dimorphos's (cross_check_fit_sigma)",
+    )
+    cross_check_fit_sigma: float = Field(
+        3.0, gt=0, description="Didymos's recognition contradicts Dimorphos's only while the median absolute residual "
+        "of its last cross_check_recent lines of sight is under this many recognition.angle_noise_rad, sigma (a "
+        "Gaussian's is 0.67): with the plume taken for Didymos in some frames (configs/scenarios/faults/"
+        "plume-x100.yaml) it was 6-10 where Didymos's and a right Dimorphos's disagreed, 0.1-0.7 where a Dimorphos "
+        "dragged off disagreed (bench/envelope.py worst-late-near); 1 lost the latter's target again",
+    )
+    stand_in_pointed_on: bool = Field(
+        True,
+        description="in NOMINAL_TRACKING and ACQUISITION, while Dimorphos's trajectory is not trusted and Didymos's "
+        "stands in for it (didymos_stands_in), the camera points on Didymos's rather than ground's nominal (as in "
+        "AUTONOMOUS_TRACKING). Dimorphos hidden behind Didymos through the whole approach with ground's nominal 3 "
+        "sigma late (bench/envelope.py configs/scenarios/worst-late-far.yaml roll 0 phase 150): the loop, fed "
+        "Didymos's lines of sight against a nominal 30 s off, lagged 1.5 deg behind them by C/A-12 s and lost the "
+        "target (60 % in view)",
+    )
     didymos_stands_in: bool = Field(
         True,
         description="while Dimorphos is not found and its trajectory not yet recognised, Didymos is found, and the "

@@ -42,6 +42,7 @@ class EventKind(IntEnum):
     TAG_DUE = 3  # the schedule's next time tag has come
     MEASUREMENT = 4  # a frame's Dimorphos line of sight is available
     PARAM_CHECK_FAILED = 5  # a monitored parameter is out of its limits
+    DIDYMOS_SIGHTED = 6  # a frame's Didymos line of sight is available
 
 
 @dataclass(frozen=True, slots=True)

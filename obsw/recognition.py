@@ -59,6 +59,17 @@ class ContinuousEstimate:
     out_of_plane_sigma_rad: float
 
 
+def estimates_agree(a: ContinuousEstimate, b: ContinuousEstimate, apart_km: float, speed_km_s: float,
+                    sigma: float) -> bool:
+    """Whether two continuous estimates can be of two points at most ``apart_km`` apart moving together (Dimorphos
+    and Didymos): C/A times within ``apart_km / speed_km_s`` (a displacement along the track), C/A distances within
+    ``apart_km`` (across it), each plus ``sigma`` of their one-sigma uncertainties combined."""
+    dt_allowed = apart_km / speed_km_s + sigma * math.sqrt(max(a.cov[0, 0], 0.0) + max(b.cov[0, 0], 0.0))
+    dd_allowed = apart_km + sigma * math.sqrt(max(a.cov[1, 1], 0.0) + max(b.cov[1, 1], 0.0))
+    return bool(abs(a.ca_time_obt_s - b.ca_time_obt_s) <= dt_allowed
+                and abs(a.ca_distance_km - b.ca_distance_km) <= dd_allowed)
+
+
 def _theta(times_s: NDArray, ca_time_s: NDArray | float, ca_distance_m: NDArray | float, speed_m_s: float) -> NDArray:
     return np.arctan2(ca_distance_m, -speed_m_s * (times_s - ca_time_s))
 
@@ -219,6 +230,17 @@ class TrajectoryRecognizer:
         )
         self._trajectory = (self._solved, traj)
         return traj
+
+    def recent_scatter_rad(self, count: int) -> float:
+        """Median absolute residual, rad, of the last ``count`` measurements against the continuous estimate (its
+        in-plane angle, offset included): how well the estimate fits what it was last told (0 before any)."""
+        if not self._meas_t:
+            return 0.0
+        e = self.continuous_estimate()
+        t = np.asarray(self._meas_t[-count:])
+        theta = np.asarray(self._meas_theta[-count:])
+        model = _theta(t, e.ca_time_obt_s, e.ca_distance_km * 1e3, self.nominal.speed_m_s) + e.in_plane_offset_rad
+        return float(np.median(np.abs(theta - model)))
 
     @property
     def last_measurement_obt_s(self) -> float | None:

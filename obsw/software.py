@@ -19,16 +19,19 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
    the attitude at its exposure and accepted by the false-lock gate (``obsw.lock_gate``), is a measurement from the
    task's finish on; a line of sight refused in NOMINAL_TRACKING hands over to AUTONOMOUS_TRACKING; while
    Dimorphos is not found and its trajectory not yet recognised, Didymos's line of sight stands in for its own
-   where the trajectory knows less than Didymos tells (``_stand_in_los``);
+   where the trajectory knows less than Didymos tells (``_stand_in_los``); Didymos's line of sight, whenever found,
+   is a sighting of its own;
 6. RECOGNITION: the measurements feed the trajectory recognition, stamped with their exposure time; Didymos's
    standing in feed a recognition of their own, whose trajectory, its uncertainty widened by the orbit's radius,
-   is pointed on and predicts the frames until Dimorphos's own is recognised (``_stand_in_trajectory``);
+   is pointed on and predicts the frames until Dimorphos's own is recognised (``_stand_in_trajectory``); Didymos's
+   sightings feed a third, against which Dimorphos's is cross-checked before it is trusted (``_contradicted``);
 7. MODES: the mode manager reacts to time and events (acquisition window, target acquired or lost, C/A-30 s by the
    on-board estimate, end of flyby);
 8. CONTROL: the tracking loop (with the latest measurement, taken at its exposure) and the PD controller give the
    wheel torques over the wheels in use (SAFE holds the attitude of its entry); a wheel reaching its momentum limit
    fails a parameter check; the loop follows ground's nominal until AUTONOMOUS_TRACKING, except while Dimorphos, its
-   trajectory recognised, goes unseen (``_unseen_since_recognised``): then the recognised trajectory;
+   trajectory recognised, goes unseen (``_unseen_since_recognised``): then the recognised trajectory, and while
+   Didymos's stands in for a Dimorphos not yet recognised: then Didymos's (``pointing_trajectory``);
 9. FDIR: a failed parameter check is reported and recovered (SAFE); failed wheels are found
    (``obsw.wheel_health``); the service 12 definitions are checked (``obsw.monitoring``); the service 19 actions of
    the events raised are run (``obsw.event_action``);
@@ -74,7 +77,7 @@ from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeMana
                         WheelSaturation)
 from obsw.modes import SetMode as SetModeTrigger
 from obsw.monitoring import ParameterMonitor
-from obsw.recognition import TrajectoryRecognizer, predicted_los
+from obsw.recognition import TrajectoryRecognizer, estimates_agree, predicted_los
 from obsw.schedule import ScheduleRequest, Selection, TimeBasedSchedule
 from obsw.tc_security import TcSecurity
 from obsw.timing import NO_WORK, TimingModel, Work
@@ -97,7 +100,8 @@ AXIS_TOLERANCE = 1e-6  # a body axis farther than this from the wheels' span can
 @dataclass(frozen=True, slots=True)
 class Measurement:
     """Dimorphos's line of sight measured in one frame: inertial unit vector, and the frame's exposure time (OBT);
-    ``stand_in``: Didymos's, Dimorphos not found (``_stand_in_los``): pointed on, and recognised apart."""
+    ``stand_in``: Didymos's, Dimorphos not found (``_stand_in_los``): pointed on, and recognised apart (the payload
+    of a DIDYMOS_SIGHTED event is Didymos's too)."""
 
     exposure_obt_s: float
     los_inertial: np.ndarray
@@ -187,7 +191,12 @@ class FlightSoftware:
         self.recognizer: TrajectoryRecognizer | None = None
         # the same recognition on Didymos's lines of sight standing in for Dimorphos's (``_stand_in_trajectory``)
         self.stand_in_recognizer: TrajectoryRecognizer | None = None
-        self._stand_in_cache: tuple[int, NominalTrajectory] | None = None  # (its measurements, its trajectory)
+        # Didymos's every line of sight recognised apart, to cross-check Dimorphos's (``_recognition_trusted``)
+        self.didymos_recognizer: TrajectoryRecognizer | None = None
+        # ((whether Didymos's every line of sight stands in, their count), the trajectory)
+        self._stand_in_cache: tuple[tuple[bool, int], NominalTrajectory] | None = None
+        # the cross-check's verdict for (Dimorphos's measurements, Didymos's measurements)
+        self._cross_check: tuple[tuple[int, int], bool] | None = None
         self.detections: Detections | None = None
         self.bad_pixels: BadPixelMap | None = None  # the camera's bad-pixel map, uploaded by ground
         self.imaging = False
@@ -358,7 +367,8 @@ class FlightSoftware:
             Task.SCHEDULE: TaskSpec(self._task_schedule, frozenset({e.TAG_DUE}), periodic=False),
             Task.ATTITUDE: TaskSpec(self._task_attitude),
             Task.IMAGING: TaskSpec(self._task_imaging, frozenset({e.FRAME_READY}), periodic=False),
-            Task.RECOGNITION: TaskSpec(self._task_recognition, frozenset({e.MEASUREMENT}), periodic=False),
+            Task.RECOGNITION: TaskSpec(self._task_recognition, frozenset({e.MEASUREMENT, e.DIDYMOS_SIGHTED}),
+                                       periodic=False),
             Task.MODES: TaskSpec(self._task_modes, frozenset({e.MEASUREMENT})),
             Task.CONTROL: TaskSpec(self._task_control, frozenset({e.MEASUREMENT})),
             Task.FDIR: TaskSpec(self._task_fdir, frozenset({e.PARAM_CHECK_FAILED})),
@@ -483,6 +493,11 @@ class FlightSoftware:
                 rec.add_measurement(m.exposure_obt_s, m.los_inertial)
             elif stand_ins is not None:  # Didymos's trajectory apart: it is up to the orbit's radius off Dimorphos's
                 stand_ins.add_measurement(m.exposure_obt_s, m.los_inertial)
+        didymos = self.didymos_recognizer
+        if didymos is not None:
+            for ev in act.of(EventKind.DIDYMOS_SIGHTED):
+                m = ev.payload  # type: ignore[assignment]
+                didymos.add_measurement(m.exposure_obt_s, m.los_inertial)
         rec.continuous()
         r = self.cfg.recognition
         return Work(candidates=r.grid_time_points * r.grid_distance_points * len(new),
@@ -624,7 +639,10 @@ class FlightSoftware:
             self.recognizer.shift_time(step_s)
         if self.stand_in_recognizer is not None:
             self.stand_in_recognizer.shift_time(step_s)
+        if self.didymos_recognizer is not None:
+            self.didymos_recognizer.shift_time(step_s)
         self._stand_in_cache = None
+        self._cross_check = None
         self.autonomous_trajectory, self._autonomous_count = None, -1
         self.tracking.shift_time(step_s)
         self.modes.shift_time(step_s)
@@ -645,7 +663,7 @@ class FlightSoftware:
             if kind == EventKind.FRAME_READY:
                 frame, meta = p  # type: ignore[misc]
                 return frame, meta.model_copy(update={"obt_s": meta.obt_s + step_s})
-            if kind == EventKind.MEASUREMENT:
+            if kind in (EventKind.MEASUREMENT, EventKind.DIDYMOS_SIGHTED):
                 return dataclasses.replace(p, exposure_obt_s=p.exposure_obt_s + step_s)  # type: ignore[type-var]
             return p
 
@@ -864,6 +882,8 @@ class FlightSoftware:
         self.trajectory = traj
         self.recognizer = recognizer
         self.stand_in_recognizer, self._stand_in_cache = TrajectoryRecognizer(traj, self.cfg.recognition), None
+        self.didymos_recognizer = TrajectoryRecognizer(traj, self.cfg.recognition)
+        self._cross_check = None
         self.schedule.reanchor_ca(traj.ca_time_obt_s)
         self.modes.handle(CaEstimate(traj.ca_time_obt_s), obt)
         self._log.append(f"OBT {obt:.2f} s: nominal trajectory loaded: C/A at OBT {traj.ca_time_obt_s:.2f} s, "
@@ -910,6 +930,9 @@ class FlightSoftware:
             return det  # the previous detections stay the reference of the chain's continuity
         self.frame_watch.good()
         self.detections = det
+        if self.cfg.tracking.didymos_cross_check and det.didymos is not None and det.didymos_offset_px is not None:
+            act.emit(EventKind.DIDYMOS_SIGHTED, Measurement(
+                obt, self._inertial_los(det.didymos_offset_px, det.binned_size_px, obt), meta.frame_id, stand_in=True))
         if det.dimorphos is None or det.dimorphos_offset_px is None:
             stand_in = self._stand_in_los(det, prediction, obt)
             if stand_in is not None:
@@ -992,24 +1015,50 @@ class FlightSoftware:
 
     def _stand_in_trajectory(self) -> NominalTrajectory | None:
         """Before Dimorphos's own lines of sight are enough to recognise its trajectory, the one recognised on
-        Didymos's standing in for them, its uncertainties widened by the orbit's radius (Dimorphos is that far from
-        Didymos at most: along the track a C/A time, across it a C/A distance); None without enough of either."""
-        stand_ins = self.stand_in_recognizer
+        Didymos's standing in for them (on every line of sight of Didymos once Didymos's contradicted Dimorphos's:
+        ``_contradicted``), its uncertainties widened by the orbit's radius (Dimorphos is that far from Didymos at
+        most: along the track a C/A time, across it a C/A distance); None without enough of either."""
+        stand_ins = self.didymos_recognizer if self._contradicted() else self.stand_in_recognizer
         if self.recognizer is None or self._recognition_trusted() or stand_ins is None \
                 or stand_ins.measurement_count < self.cfg.min_recognition_measurements:
             return None
-        if self._stand_in_cache is None or self._stand_in_cache[0] != stand_ins.measurement_count:
+        key = (stand_ins is self.didymos_recognizer, stand_ins.measurement_count)
+        if self._stand_in_cache is None or self._stand_in_cache[0] != key:
             traj = stand_ins.continuous_trajectory()
             r_km = self.cfg.targets.orbit_radius_m / 1e3
-            self._stand_in_cache = (stand_ins.measurement_count, traj.model_copy(update={
+            self._stand_in_cache = (key, traj.model_copy(update={
                 "ca_time_sigma_s": math.hypot(traj.ca_time_sigma_s, r_km / traj.speed_km_s),
                 "ca_distance_sigma_km": math.hypot(traj.ca_distance_sigma_km, r_km)}))
         return self._stand_in_cache[1]
 
     def _recognition_trusted(self) -> bool:
-        """Whether Dimorphos's own lines of sight are enough for its recognised trajectory to be trusted."""
-        return self.recognizer is not None \
-            and self.recognizer.measurement_count >= self.cfg.min_recognition_measurements
+        """Whether Dimorphos's own lines of sight are enough for its recognised trajectory to be trusted: enough
+        of them, and not contradicted by Didymos's (``_contradicted``)."""
+        rec = self.recognizer
+        return rec is not None and rec.measurement_count >= self.cfg.min_recognition_measurements \
+            and not self._contradicted()
+
+    def _contradicted(self) -> bool:
+        """Whether Dimorphos's recognised trajectory is farther from Didymos's (recognised on every line of sight of
+        Didymos, ``tracking.didymos_cross_check``) than their centroids can be apart: the orbit's radius plus both
+        bodies' largest apparent radii, along the track in C/A time and across it in C/A distance, beyond
+        ``tracking.cross_check_sigma`` of their uncertainties (``recognition.estimates_agree``), while Didymos's fits
+        its own recent lines of sight within its noise (``tracking.cross_check_fit_sigma``: other blobs taken for
+        Didymos scatter them, and its trajectory then says nothing of Dimorphos's)."""
+        rec, didymos, n = self.recognizer, self.didymos_recognizer, self.cfg.min_recognition_measurements
+        if not self.cfg.tracking.didymos_cross_check or rec is None or didymos is None \
+                or rec.measurement_count < n or didymos.measurement_count < n:
+            return False
+        key = (rec.measurement_count, didymos.measurement_count)
+        if self._cross_check is None or self._cross_check[0] != key:
+            tk = self.cfg.targets
+            apart_m = tk.orbit_radius_m + tk.max_axis_ratio * (tk.didymos_diameter_m + tk.dimorphos_diameter_m) / 2
+            tc = self.cfg.tracking
+            agree = estimates_agree(rec.continuous_estimate(), didymos.continuous_estimate(), apart_m / 1e3,
+                                    rec.nominal.speed_km_s, tc.cross_check_sigma)
+            self._cross_check = (key, not agree and didymos.recent_scatter_rad(tc.cross_check_recent)
+                                 <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad)
+        return self._cross_check[1]
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
@@ -1100,12 +1149,17 @@ class FlightSoftware:
     def pointing_trajectory(self) -> NominalTrajectory | None:
         """The trajectory the camera follows: the recognised one, refreshed with every measurement, in
         AUTONOMOUS_TRACKING, and in NOMINAL_TRACKING or ACQUISITION while Dimorphos, once recognised, goes unseen
-        (``_unseen_since_recognised``); the ground's nominal otherwise."""
+        (``_unseen_since_recognised``); before Dimorphos's is trusted, Didymos's standing in once there is one
+        (``_stand_in_trajectory``; in NOMINAL_TRACKING with ``tracking.stand_in_pointed_on``); the ground's nominal
+        otherwise."""
         rec = self.recognizer
         if rec is None:
             return self.trajectory
         if self.modes.mode != Mode.AUTONOMOUS_TRACKING:
-            return self._autonomous_trajectory() if self._unseen_since_recognised() else self.trajectory
+            if self._unseen_since_recognised():
+                return self._autonomous_trajectory()
+            stand_in = self._stand_in_trajectory() if self.cfg.tracking.stand_in_pointed_on else None
+            return stand_in or self.trajectory
         if not self._recognition_trusted():
             return self._stand_in_trajectory() or self.trajectory
         return self._autonomous_trajectory()

@@ -11,8 +11,8 @@ from scipy.spatial.transform import Rotation
 
 from obsw import recognition_kernels
 from obsw.config import RecognitionConfig
-from obsw.recognition import (ContinuousEstimate, TrajectoryRecognizer, measured_theta_rad, out_of_plane_rad,
-                              predicted_los, predicted_theta)
+from obsw.recognition import (ContinuousEstimate, TrajectoryRecognizer, estimates_agree, measured_theta_rad,
+                              out_of_plane_rad, predicted_los, predicted_theta)
 from obsw.trajectory import NominalTrajectory
 from tests.obsw.recognition_reference import reference_solve
 
@@ -393,3 +393,74 @@ def test_compiled_estimate_equals_the_numpy_reference(dt: float, dd_km: float, o
     assert p[0] == pytest.approx(p_ref[0], abs=1e-6) and p[1] == pytest.approx(p_ref[1], abs=1e-3)
     assert p[2] == pytest.approx(p_ref[2], abs=1e-8)  # 1e-4 of the angle noise: both stop at the same cost change
     assert np.allclose(cov, cov_ref, rtol=1e-6, atol=1e-12)
+
+
+# --- the cross-check of Dimorphos's recognition against Didymos's ---------------------------------------------------
+# the two bodies' centroids are at most the orbit's radius plus both bodies' largest apparent radii apart (obsw's
+# default knowledge: 1190 m + 1.5 x (780 + 164) / 2 m)
+APART_KM = (1190.0 + 1.5 * (780.0 + 164.0) / 2) / 1e3
+
+
+def _fed_apart(truth: NominalTrajectory, offset_m: np.ndarray, seed: int) -> TrajectoryRecognizer:
+    """A recognition fed the lines of sight of a body ``offset_m`` (inertial) from ``truth``'s point, noisy as
+    ``_measured_los``: the spacecraft's position relative to that body is ``truth``'s plus the offset."""
+    rng = np.random.default_rng(seed)
+    rec = TrajectoryRecognizer(NOMINAL, CFG)
+    for t in TIMES:
+        r = truth.position_m(float(t)) + offset_m
+        los = -r / np.linalg.norm(r)
+        q_true = Rotation.from_rotvec(rng.normal(0.0, 0.3, 3))
+        los_body = q_true.inv().apply(los)
+        los_body = los_body + np.array([*rng.normal(0.0, CENTROID_SIGMA, 2), 0.0]) * los_body[2]
+        los_body /= np.linalg.norm(los_body)
+        q_est = q_true * Rotation.from_rotvec(rng.normal(0.0, ATTITUDE_SIGMA, 3))
+        rec.add_measurement(float(t), q_est.apply(los_body))
+    return rec
+
+
+@pytest.mark.parametrize("k", range(12))
+def test_two_bodies_no_farther_apart_than_the_allowance_are_recognised_as_agreeing(k: int) -> None:
+    """Two recognitions fed the lines of sight of two bodies the whole allowance apart, in any direction (along the
+    track, across it, out of the plane), agree (``estimates_agree`` at 3 sigma)."""
+    rng = np.random.default_rng(100 + k)
+    direction = rng.normal(size=3) if k >= 3 else np.eye(3)[k]  # the three axes, then random directions
+    offset = APART_KM * 1e3 * direction / np.linalg.norm(direction)
+    truth = NOMINAL.with_ca(1008.0, 58.0)
+    a, b = _fed_apart(truth, np.zeros(3), 2 * k), _fed_apart(truth, offset, 2 * k + 1)
+    assert estimates_agree(a.continuous_estimate(), b.continuous_estimate(), APART_KM, truth.speed_km_s, 3.0)
+
+
+@pytest.mark.parametrize("dt_s", [-6.0, -2.0, 2.0, 6.0])
+def test_a_recognition_seconds_off_does_not_agree_with_the_other_body(dt_s: float) -> None:
+    """A recognition fed lines of sight of a trajectory seconds off in C/A time (what lines of sight of an unresolved
+    pair did) does not agree with the other body's, fed the true one."""
+    truth = NOMINAL.with_ca(1008.0, 58.0)
+    a, b = _fed_apart(truth.with_ca(1008.0 + dt_s, 58.0), np.zeros(3), 7), _fed_apart(truth, np.zeros(3), 8)
+    assert not estimates_agree(a.continuous_estimate(), b.continuous_estimate(), APART_KM, truth.speed_km_s, 3.0)
+
+
+def test_the_agreement_is_symmetric_and_bounded_by_each_component() -> None:
+    """The agreement is symmetric, and fails as soon as either the C/A times or the C/A distances differ by more
+    than their allowance (closed form on hand-made estimates)."""
+    cov = np.diag([0.1**2, 0.2**2, 1e-8])
+    e = ContinuousEstimate(1000.0, 55.0, 0.0, cov, 0.0, 1e-4)
+    allowed_t = 1.0 / 7.0 + 3.0 * np.sqrt(2) * 0.1
+    allowed_d = 1.0 + 3.0 * np.sqrt(2) * 0.2
+    for dt, dd, ok in [(0.99 * allowed_t, 0.0, True), (1.01 * allowed_t, 0.0, False), (0.0, 0.99 * allowed_d, True),
+                       (0.0, -1.01 * allowed_d, False), (-0.99 * allowed_t, 0.99 * allowed_d, True)]:
+        f = ContinuousEstimate(1000.0 + dt, 55.0 + dd, 0.0, cov, 0.0, 1e-4)
+        assert estimates_agree(e, f, 1.0, 7.0, 3.0) is ok and estimates_agree(f, e, 1.0, 7.0, 3.0) is ok
+
+
+def test_the_recent_scatter_is_the_noise_and_grows_with_other_blobs() -> None:
+    """The median absolute residual of the last lines of sight is under one sigma of their noise, and exceeds the
+    cross-check's 3 sigma once most of them are another blob's, 10 sigma off in angle."""
+    truth = NOMINAL.with_ca(1008.0, 58.0)
+    rec = _fed(truth, 11)
+    assert 0.0 < rec.recent_scatter_rad(40) < SIGMA
+    rng = np.random.default_rng(12)
+    normal = np.cross(truth.approach_direction, truth.ca_direction)
+    for t in np.arange(1000.0 - 29.0, 1000.0 - 5.0, 1.0):  # 24 more, each turned 10 sigma out of its place in plane
+        los = Rotation.from_rotvec(normal / np.linalg.norm(normal) * 10 * SIGMA).apply(_measured_los(truth, t, rng))
+        rec.add_measurement(float(t), los)
+    assert rec.recent_scatter_rad(20) > 3.0 * SIGMA
