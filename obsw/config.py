@@ -669,6 +669,12 @@ class TargetKnowledge(Config):
             raise ValueError("must be a non-zero vector")
         return v
 
+    @property
+    def centroids_apart_max_m(self) -> float:
+        """The farthest Dimorphos's and Didymos's centroids can be apart, m: the orbit's radius plus both bodies'
+        largest apparent radii (a centroid lies within its body's disc)."""
+        return self.orbit_radius_m + self.max_axis_ratio * (self.didymos_diameter_m + self.dimorphos_diameter_m) / 2
+
 
 class CameraKnowledge(Config):
     """What the flight software knows of its camera (the true camera is ``universe.camera``; by default the same)."""

@@ -930,11 +930,12 @@ class FlightSoftware:
             return det  # the previous detections stay the reference of the chain's continuity
         self.frame_watch.good()
         self.detections = det
-        if self.cfg.tracking.didymos_cross_check and det.didymos is not None and det.didymos_offset_px is not None:
-            act.emit(EventKind.DIDYMOS_SIGHTED, Measurement(
-                obt, self._inertial_los(det.didymos_offset_px, det.binned_size_px, obt), meta.frame_id, stand_in=True))
+        didymos_los = None if det.didymos is None or det.didymos_offset_px is None \
+            else self._inertial_los(det.didymos_offset_px, det.binned_size_px, obt)
+        if self.cfg.tracking.didymos_cross_check and didymos_los is not None:
+            act.emit(EventKind.DIDYMOS_SIGHTED, Measurement(obt, didymos_los, meta.frame_id, stand_in=True))
         if det.dimorphos is None or det.dimorphos_offset_px is None:
-            stand_in = self._stand_in_los(det, prediction, obt)
+            stand_in = self._stand_in_los(det, prediction, didymos_los)
             if stand_in is not None:
                 self._last_seen_obt = obt
                 act.emit(EventKind.MEASUREMENT, Measurement(obt, stand_in, meta.frame_id, stand_in=True))
@@ -962,14 +963,15 @@ class FlightSoftware:
                                         los_inertial=tuple(float(c) for c in los_i)), obt)
         return det
 
-    def _stand_in_los(self, det: Detections, prediction: FramePrediction | None, obt: float) -> np.ndarray | None:
-        """Didymos's inertial line of sight, standing in for Dimorphos's while Dimorphos is not found and its
+    def _stand_in_los(self, det: Detections, prediction: FramePrediction | None,
+                      didymos_los: np.ndarray | None) -> np.ndarray | None:
+        """Didymos's inertial line of sight (``didymos_los``, of ``det``'s Didymos), standing in for Dimorphos's while Dimorphos is not found and its
         trajectory not yet recognised on its own lines of sight: when Didymos is found, and the trajectory's
         uncertainty on Dimorphos's place is wider than the orbit's apparent radius (Didymos's centroid then bounds
         where Dimorphos is better than the trajectory does: hidden behind or in front of Didymos, or lost in its
         glow, Dimorphos is within that radius of it), and Didymos lies where that place and radius allow
         (``tracking.didymos_stands_in``). Once recognised, Dimorphos's trajectory is the better bound."""
-        if not self.cfg.tracking.didymos_stands_in or det.didymos is None or det.didymos_offset_px is None \
+        if not self.cfg.tracking.didymos_stands_in or det.didymos is None or didymos_los is None \
                 or self._recognition_trusted() \
                 or prediction is None or prediction.dimorphos_col_row is None \
                 or prediction.dimorphos_uncertainty_px is None or prediction.orbit_radius_max_px is None:
@@ -979,7 +981,7 @@ class FlightSoftware:
         if not reach < spread or math.hypot(col - prediction.dimorphos_col_row[0],
                                             row - prediction.dimorphos_col_row[1]) > reach + spread:
             return None
-        return self._inertial_los(det.didymos_offset_px, det.binned_size_px, obt)
+        return didymos_los
 
     def _inertial_los(self, offset_px: tuple[float, float], binned_size_px: int, obt: float) -> np.ndarray:
         """The inertial line of sight of an image offset from the centre, with the attitude at exposure ``obt``."""
@@ -1051,10 +1053,9 @@ class FlightSoftware:
             return False
         key = (rec.measurement_count, didymos.measurement_count)
         if self._cross_check is None or self._cross_check[0] != key:
-            tk = self.cfg.targets
-            apart_m = tk.orbit_radius_m + tk.max_axis_ratio * (tk.didymos_diameter_m + tk.dimorphos_diameter_m) / 2
             tc = self.cfg.tracking
-            agree = estimates_agree(rec.continuous_estimate(), didymos.continuous_estimate(), apart_m / 1e3,
+            agree = estimates_agree(rec.continuous_estimate(), didymos.continuous_estimate(),
+                                    self.cfg.targets.centroids_apart_max_m / 1e3,
                                     rec.nominal.speed_km_s, tc.cross_check_sigma)
             self._cross_check = (key, not agree and didymos.recent_scatter_rad(tc.cross_check_recent)
                                  <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad)
