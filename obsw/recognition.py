@@ -127,9 +127,10 @@ class TrajectoryRecognizer:
         )
         self._tie_order = np.lexsort(((u**2 + w**2).ravel(),))
         self._sum_sq = np.zeros(self._cand_t.size)
-        self._meas_t: list[float] = []
-        self._meas_theta: list[float] = []
-        self._meas_out: list[float] = []
+        # the measurements (time OBT s, in-plane angle rad, out-of-plane angle rad) in rows of a buffer that doubles
+        # as it fills: the solve reads them as arrays at every new one, without converting a list each time
+        self._meas = np.empty((3, 64))
+        self._n = 0
         self._solved: tuple[int, ContinuousEstimate] | None = None
         self._trajectory: tuple[object, NominalTrajectory] | None = None  # (the _solved it was built from, it)
 
@@ -139,7 +140,7 @@ class TrajectoryRecognizer:
         self.nominal = self.nominal.with_ca(self.nominal.ca_time_obt_s + step_s, self.nominal.ca_distance_km)
         self._times_s = self._times_s + step_s
         self._cand_t = self._cand_t + step_s
-        self._meas_t = [t + step_s for t in self._meas_t]
+        self._meas[0, : self._n] += step_s
         self._solved = None
 
     # --- measurements --------------------------------------------------------------------------------------------
@@ -147,12 +148,12 @@ class TrajectoryRecognizer:
     @property
     def measurement_count(self) -> int:
         """Number of measurements accumulated."""
-        return len(self._meas_t)
+        return self._n
 
     @property
     def measurement_times_obt_s(self) -> tuple[float, ...]:
         """The time stamps of the measurements accumulated, OBT s, in the order they were added."""
-        return tuple(self._meas_t)
+        return tuple(self._meas[0, : self._n].tolist())
 
     def add_measurement(self, obt_s: float, los_inertial: ArrayLike) -> None:
         """Accumulate one measured LOS (inertial unit vector spacecraft -> target, ``R(q) @ los_body``) at ``obt_s``.
@@ -167,9 +168,10 @@ class TrajectoryRecognizer:
         theta = measured_theta_rad(self.nominal, los)
         residual = theta - _theta(np.float64(obt_s), self._cand_t, self._cand_d_m, self.nominal.speed_m_s)
         self._sum_sq += np.minimum(residual**2, self.cfg.residual_cap_rad**2)
-        self._meas_t.append(float(obt_s))
-        self._meas_theta.append(theta)
-        self._meas_out.append(out_of_plane_rad(self.nominal, los))
+        if self._n == self._meas.shape[1]:
+            self._meas = np.concatenate([self._meas, np.empty_like(self._meas)], axis=1)
+        self._meas[:, self._n] = (float(obt_s), theta, out_of_plane_rad(self.nominal, los))
+        self._n += 1
 
     # --- grid ----------------------------------------------------------------------------------------------------
 
@@ -185,7 +187,7 @@ class TrajectoryRecognizer:
     def best_grid(self) -> tuple[float, float, float]:
         """(C/A time OBT s, C/A distance km, mean square error rad^2) of the best candidate; the nominal (and an
         mse of nan) before any measurement."""
-        if not self._meas_t:
+        if not self._n:
             return self.nominal.ca_time_obt_s, self.nominal.ca_distance_km, float("nan")
         mse = self._sum_sq / self.measurement_count
         ordered = self._tie_order[np.argsort(mse[self._tie_order], kind="stable")]
@@ -234,34 +236,34 @@ class TrajectoryRecognizer:
     def recent_scatter_rad(self, count: int) -> float:
         """Median absolute residual, rad, of the last ``count`` measurements against the continuous estimate (its
         in-plane angle, offset included): how well the estimate fits what it was last told (0 before any)."""
-        if not self._meas_t:
+        if not self._n:
             return 0.0
         e = self.continuous_estimate()
-        t = np.asarray(self._meas_t[-count:])
-        theta = np.asarray(self._meas_theta[-count:])
+        t = self._meas[0, max(self._n - count, 0): self._n]
+        theta = self._meas[1, max(self._n - count, 0): self._n]
         model = _theta(t, e.ca_time_obt_s, e.ca_distance_km * 1e3, self.nominal.speed_m_s) + e.in_plane_offset_rad
         return float(np.median(np.abs(theta - model)))
 
     @property
     def last_measurement_obt_s(self) -> float | None:
         """The time stamp of the measurement added last, OBT s (None before any)."""
-        return self._meas_t[-1] if self._meas_t else None
+        return float(self._meas[0, self._n - 1]) if self._n else None
 
     def _solve(self) -> ContinuousEstimate:
         nom = self.nominal
         c = self.cfg
         sig_t, sig_d_m, sig_e = nom.ca_time_sigma_s, nom.ca_distance_sigma_km * 1e3, c.los_offset_sigma_rad
-        if not self._meas_t:
+        if not self._n:
             return ContinuousEstimate(nom.ca_time_obt_s, nom.ca_distance_km, 0.0,
                                       np.diag([sig_t**2, (sig_d_m / 1e3) ** 2, sig_e**2]), 0.0, sig_e)
         t0, d0_km, _ = self.best_grid()
         p, cov, inliers = recognition_kernels.solve(
-            np.asarray(self._meas_t), np.asarray(self._meas_theta),
+            self._meas[0, : self._n], self._meas[1, : self._n],
             np.array([nom.ca_time_obt_s, nom.ca_distance_m, 0.0]), np.array([sig_t, sig_d_m, sig_e]),
             np.array([t0, d0_km * 1e3, 0.0]), nom.speed_m_s, c.angle_noise_rad,
             c.residual_cap_rad, c.outlier_gate_sigma * c.angle_noise_rad, c.max_iterations)
         # the out-of-plane offset: the mean of the inliers' angles shrunk by the prior (0 without one)
-        out = np.asarray(self._meas_out)[inliers]
+        out = self._meas[2, : self._n][inliers]
         info = out.size / c.angle_noise_rad**2 + (1.0 / sig_e**2 if sig_e > 0 else math.inf)
         eta = float(out.sum()) / c.angle_noise_rad**2 / info
         units = np.array([1.0, 1e-3, 1.0])  # s, m -> km, rad

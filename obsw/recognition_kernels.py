@@ -109,10 +109,11 @@ def _cost(r: np.ndarray, use: np.ndarray, sigma: float, x: np.ndarray, free: np.
 
 @njit(cache=True, nogil=True)
 def _gauss_newton(times: np.ndarray, theta: np.ndarray, use: np.ndarray, origin: np.ndarray, s: np.ndarray,
-                  free: np.ndarray, v: float, sigma: float, x: np.ndarray, max_iterations: int) -> np.ndarray:
-    """The MAP point (scaled) over the measurements ``use`` from ``x``, with step halving."""
+                  free: np.ndarray, v: float, sigma: float, x: np.ndarray, r: np.ndarray,
+                  max_iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """The MAP point (scaled) over the measurements ``use`` from ``x``, whose residuals are ``r``, with step halving;
+    and its residuals."""
     x = x.copy()
-    r = _residuals(times, theta, _point(origin, x, s), v)
     current = _cost(r, use, sigma, x, free)
     w = sigma * sigma
     for _ in range(max_iterations):
@@ -137,7 +138,7 @@ def _gauss_newton(times: np.ndarray, theta: np.ndarray, use: np.ndarray, origin:
                     break
             length *= 0.5
             if length < MIN_STEP_FRACTION:
-                return x
+                return x, r
         improvement = current - new
         x, r, current = trial, r_trial, new
         tiny = True  # every component of the step under 1e-10 (a NaN is not)
@@ -145,14 +146,14 @@ def _gauss_newton(times: np.ndarray, theta: np.ndarray, use: np.ndarray, origin:
             tiny = tiny and abs(length * step[k]) < 1e-10
         if improvement <= 1e-12 * max(current, 1.0) or tiny:
             break
-    return x
+    return x, r
 
 
 @njit(cache=True, nogil=True)
-def _inliers(times: np.ndarray, theta: np.ndarray, p: np.ndarray, v: float, gate: float) -> np.ndarray:
-    r = _residuals(times, theta, p, v)
-    out = np.empty(times.size, dtype=np.bool_)
-    for i in range(times.size):
+def _inliers(r: np.ndarray, gate: float) -> np.ndarray:
+    """The measurements whose residual ``r`` is within ``gate``."""
+    out = np.empty(r.size, dtype=np.bool_)
+    for i in range(r.size):
         out[i] = abs(r[i]) <= gate
     return out
 
@@ -189,17 +190,20 @@ def solve(times: np.ndarray, theta: np.ndarray, origin: np.ndarray, sigma: np.nd
         free[k] = sigma[k] > 0
         s[k] = sigma[k] if free[k] else 1.0
         x[k] = (start[k] - origin[k]) / s[k] if free[k] else 0.0
+    # the residuals at x, carried along with it: each is computed once however many gates and rounds read it
+    r = _residuals(times, theta, _point(origin, x, s), speed_m_s)
     for gate in (cap_rad, tight_rad):
         inliers = np.zeros(times.size, dtype=np.bool_)
         for _ in range(ROUNDS):
-            new = _inliers(times, theta, _point(origin, x, s), speed_m_s, gate)
+            new = _inliers(r, gate)
             if not _any(new) or _equal(new, inliers):
                 break
             inliers = new
-            x = _gauss_newton(times, theta, inliers, origin, s, free, speed_m_s, angle_noise_rad, x, max_iterations)
+            x, r = _gauss_newton(times, theta, inliers, origin, s, free, speed_m_s, angle_noise_rad, x, r,
+                                 max_iterations)
     # the information is that of the measurements the final estimate explains (none: the prior alone)
     p = _point(origin, x, s)
-    inliers = _inliers(times, theta, p, speed_m_s, tight_rad)
+    inliers = _inliers(r, tight_rad)
     a, _ = _normal_equations(times, p, speed_m_s, s, np.zeros(times.size), inliers)
     w = angle_noise_rad * angle_noise_rad
     for k in range(N):
