@@ -224,6 +224,7 @@ class FlightSoftware:
         self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
         self._requester: int | None = None  # source id of the TC being executed: its responses go there
         self._attitude_history: deque[tuple[float, np.ndarray]] = deque(maxlen=ATTITUDE_HISTORY_PERIODS)
+        self._exposure_rotation: tuple[np.ndarray, Rotation] | None = None  # (an attitude of the history, its rotation)
         self.autonomous_trajectory: NominalTrajectory | None = None
         self._autonomous_count = -1
         self._hk_next: float | None = None
@@ -986,7 +987,11 @@ class FlightSoftware:
     def _inertial_los(self, offset_px: tuple[float, float], binned_size_px: int, obt: float) -> np.ndarray:
         """The inertial line of sight of an image offset from the centre, with the attitude at exposure ``obt``."""
         los_b = los_body(offset_px[0], offset_px[1], self.camera.fov_deg, binned_size_px)
-        return Rotation.from_quat(self._attitude_at(obt)).apply(los_b)
+        q = self._attitude_at(obt)
+        # Didymos's and Dimorphos's lines of sight of a frame turn with one attitude: its rotation is built once
+        if self._exposure_rotation is None or self._exposure_rotation[0] is not q:
+            self._exposure_rotation = (q, Rotation.from_quat(q))
+        return self._exposure_rotation[1].apply(los_b)
 
     def _los_knowledge(self, recognised: NominalTrajectory | None, obt: float) -> LosKnowledge | None:
         """The continuous estimate's line of sight at ``obt``, when the recognised trajectory is that estimate's, with
