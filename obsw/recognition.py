@@ -24,7 +24,7 @@ uncertainty a factor of two (ten to twenty milliseconds).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -212,8 +212,10 @@ class TrajectoryRecognizer:
     def continuous_estimate(self) -> ContinuousEstimate:
         """The MAP estimate with the LOS offsets (before any measurement: the nominal, no offset, the priors)."""
         if self._solved is None or self._solved[0] != self.measurement_count:
-            self._solved = (self.measurement_count, self._solve())
-        return replace(self._solved[1], cov=self._solved[1].cov.copy())  # the cached one's array stays untouched
+            e = self._solve()
+            e.cov.setflags(write=False)  # the one value handed to every caller until the next measurement: read-only
+            self._solved = (self.measurement_count, e)
+        return self._solved[1]
 
     def continuous_trajectory(self) -> NominalTrajectory:
         """The nominal trajectory moved to the continuous estimate, with its one-sigma uncertainties (the same value

@@ -256,6 +256,8 @@ class FlightSoftware:
         # the torques of the last reply and of the one before, and when the last took effect: what the wheels got
         self._applied: tuple[np.ndarray, np.ndarray, float] = (np.zeros(n_wheels), np.zeros(n_wheels), 0.0)
         self._impulse = np.zeros(n_wheels)  # impulse commanded to each wheel since the last momentum measured, N m s
+        self._no_impulse = np.zeros(n_wheels)  # the impulse reset at each measurement (never written: sums make anew)
+        self._no_impulse.setflags(write=False)
         self._impulse_s = 0.0  # the time it spans, s
         self._measured_h = False  # the attitude task measured the wheel momenta this period
         self._step_sequence = 0
@@ -539,7 +541,7 @@ class FlightSoftware:
         failures = []
         if self._measured_h:  # over the periods since the momenta were last measured (a skipped attitude task)
             failures = self.wheel_health.update(self._wheel_h, self._impulse, self._impulse_s)
-            self._impulse, self._impulse_s = np.zeros_like(self._impulse), 0.0
+            self._impulse, self._impulse_s = self._no_impulse, 0.0
         for f in failures:
             self._event(pus.WheelFailedEvent(wheel=f.wheel, commanded_nms=f.commanded_nms, measured_nms=f.measured_nms),
                         now, f"wheel {f.wheel} failed: {f.commanded_nms:+.2e} N m s commanded over the window, "
@@ -553,6 +555,8 @@ class FlightSoftware:
                         f"monitoring {d.pmon_id} ({d.parameter.name}): {t.previous.name} -> {t.status.name}, value "
                         f"{t.value:.6g}, limit {t.limit:.6g}")
         actions = self._run_actions(now)
+        if not (checks or transitions or actions):
+            return NO_WORK  # the usual period: no Work to build
         return Work(checks=len(checks) + len(transitions), commands=actions)
 
     def _task_camera(self, act: Activation) -> Work:
@@ -570,7 +574,8 @@ class FlightSoftware:
 
     def _task_telemetry(self, act: Activation) -> Work:
         """Housekeeping and estimate reports when due."""
-        return Work(packets=self._periodic_tm(act.now_s))
+        packets = self._periodic_tm(act.now_s)
+        return Work(packets=packets) if packets else NO_WORK
 
     # -- telemetry -----------------------------------------------------------------------------------------
     def _send(self, report: pus.TmReport, obt: float, destination_id: int | None = None) -> None:
