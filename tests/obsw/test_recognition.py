@@ -288,6 +288,40 @@ def test_clock_offset_is_absorbed_in_the_ca_time() -> None:
     assert abs(t - 1029.0) < 4 * np.sqrt(cov[0, 0]) and abs(d - 53.0) < 4 * np.sqrt(cov[1, 1])
 
 
+def test_a_step_of_on_board_time_moves_the_measurements_and_the_estimate_with_it() -> None:
+    """After shift_time(s) the recognition is the one fed the same lines of sight s later against the nominal moved by
+    s: the measurements' times, the grid's choice and the continuous estimate move by s, the distance stays."""
+    truth, step_s = NOMINAL.with_ca(1003.0, 57.0), 12.5
+    rng = np.random.default_rng(21)
+    shifted = TrajectoryRecognizer(NOMINAL, CFG)
+    later = TrajectoryRecognizer(NOMINAL.with_ca(1000.0 + step_s, 55.0), CFG)
+    for t in TIMES:  # 210 measurements: past the first sizes of the recognizer's buffer
+        los = _measured_los(truth, float(t), rng)
+        shifted.add_measurement(float(t), los)
+        later.add_measurement(float(t) + step_s, los)
+    shifted.continuous_estimate()  # solved before the step: the cached estimate must move too
+    shifted.shift_time(step_s)
+    assert shifted.measurement_times_obt_s == pytest.approx(tuple(TIMES + step_s), abs=1e-9)
+    assert shifted.last_measurement_obt_s == pytest.approx(float(TIMES[-1]) + step_s, abs=1e-9)
+    assert shifted.best_grid() == pytest.approx(later.best_grid(), abs=1e-9)
+    a, b = shifted.continuous_estimate(), later.continuous_estimate()
+    assert a.ca_time_obt_s == pytest.approx(b.ca_time_obt_s, abs=1e-6)
+    assert a.ca_distance_km == pytest.approx(b.ca_distance_km, abs=1e-6)
+    assert np.allclose(a.cov, b.cov, rtol=1e-6, atol=1e-12)
+
+
+def test_the_estimate_is_one_read_only_value_until_the_next_measurement() -> None:
+    """Every caller gets the same estimate until a measurement is added, and none can write its covariance (the next
+    caller would get the change); a new measurement gives a new estimate."""
+    rec = _fed(NOMINAL.with_ca(1002.0, 56.0), 5)
+    first = rec.continuous_estimate()
+    assert rec.continuous_estimate() is first
+    with pytest.raises(ValueError, match="read-only"):
+        first.cov[0, 0] = 0.0
+    rec.add_measurement(float(TIMES[-1]) + 1.0, NOMINAL.with_ca(1002.0, 56.0).los_inertial(float(TIMES[-1]) + 1.0))
+    assert rec.continuous_estimate() is not first and rec.measurement_count == TIMES.size + 1
+
+
 def test_zero_sigma_fixes_that_parameter() -> None:
     """A zero one-sigma uncertainty pins that parameter to the nominal, with zero variance."""
     nominal = NOMINAL.model_copy(update={"ca_distance_sigma_km": 0.0})
