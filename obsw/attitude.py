@@ -118,9 +118,11 @@ class AttitudeEstimator:
             self.propagate(gyro if self._last_gyro is None else 0.5 * (gyro + self._last_gyro), dt_s)
         self._last_gyro = gyro
         if star_tracker_q is not None:
-            if tuple(star_tracker_q) != self._last_solution:  # a tracker slower than the control holds its reading
-                self.update(np.asarray(star_tracker_q, dtype=float))
-                self._last_solution = tuple(float(c) for c in star_tracker_q)
+            reading = np.asarray(star_tracker_q, dtype=float)
+            solution = tuple(reading.tolist())  # Python floats at once (a generator of float() cost 2 us a period)
+            if solution != self._last_solution:  # a tracker slower than the control holds its reading
+                self.update(reading)
+                self._last_solution = solution
             self.since_solution_s = 0.0
             self.outage = False
         else:
