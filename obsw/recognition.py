@@ -161,9 +161,11 @@ class TrajectoryRecognizer:
         O(candidates): each candidate's capped squared residual is added to its running sum.
         """
         los = np.asarray(los_inertial, dtype=float)
-        if los.shape != (3,) or not np.all(np.isfinite(los)) or abs(float(np.linalg.norm(los)) - 1.0) > 1e-6:
+        # scalar checks on the three floats: NumPy's reductions cost more than the work they guard
+        if los.shape != (3,) or not all(math.isfinite(c) for c in los.tolist()) \
+                or abs(math.sqrt(float(los @ los)) - 1.0) > 1e-6:
             raise ValueError(f"los_inertial must be a finite unit 3-vector, got {los_inertial}")
-        if not np.isfinite(obt_s):
+        if not math.isfinite(obt_s):
             raise ValueError(f"obt_s must be finite, got {obt_s}")
         theta = measured_theta_rad(self.nominal, los)
         residual = theta - _theta(np.float64(obt_s), self._cand_t, self._cand_d_m, self.nominal.speed_m_s)
@@ -190,8 +192,8 @@ class TrajectoryRecognizer:
         if not self._n:
             return self.nominal.ca_time_obt_s, self.nominal.ca_distance_km, float("nan")
         mse = self._sum_sq / self.measurement_count
-        ordered = self._tie_order[np.argsort(mse[self._tie_order], kind="stable")]
-        best = int(ordered[0])
+        # the least in tie order: argmin takes the first of equal minima (every mse is finite: measurements are)
+        best = int(self._tie_order[np.argmin(mse[self._tie_order])])
         return float(self._cand_t[best]), float(self._cand_d_m[best] / 1e3), float(mse[best])
 
     def best_trajectory(self) -> NominalTrajectory:

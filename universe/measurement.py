@@ -109,7 +109,8 @@ def centroid_measurement(scene: Scene, camera: CameraConfig, model: CentroidMode
     seen: list[tuple[tuple[float, float], float] | None] = []
     views = body_views(scene, camera) if views is None else views
     for i, (col_row, radius_px, phase_deg, towards_sun) in enumerate(views):
-        if not (np.all(np.isfinite(col_row)) and np.all((col_row >= -0.5) & (col_row <= n - 0.5))):
+        col, row = col_row.tolist()
+        if not (-0.5 <= col <= n - 0.5 and -0.5 <= row <= n - 0.5):  # off the frame, or not finite (NaN compares false)
             seen.append(None)
             continue
         sigma = model.noise_px + model.noise_radius_fraction * radius_px
