@@ -255,9 +255,9 @@ class FlightSoftware:
         self._outage_start: float | None = None
         # the torques of the last reply and of the one before, and when the last took effect: what the wheels got
         self._applied: tuple[np.ndarray, np.ndarray, float] = (np.zeros(n_wheels), np.zeros(n_wheels), 0.0)
-        self._impulse = np.zeros(n_wheels)  # impulse commanded to each wheel since the last momentum measured, N m s
         self._no_impulse = np.zeros(n_wheels)  # the impulse reset at each measurement (never written: sums make anew)
         self._no_impulse.setflags(write=False)
+        self._impulse = self._no_impulse  # impulse commanded to each wheel since the last momentum measured, N m s
         self._impulse_s = 0.0  # the time it spans, s
         self._measured_h = False  # the attitude task measured the wheel momenta this period
         self._step_sequence = 0
