@@ -205,15 +205,32 @@ def test_local_workers_keep_the_dynamic_heap(monkeypatch: pytest.MonkeyPatch) ->
     assert list(seen.values()) == [(None, "1")]
 
 
+def _busy_s(seconds: float) -> float:
+    """Keep a worker's thread in Python for ``seconds`` of its CPU time (something a profiler would sample)."""
+    import time
+    end, x = time.thread_time() + seconds, 0.0
+    while time.thread_time() < end:
+        x += sum(i * 0.5 for i in range(200))
+    return x
+
+
+def test_local_workers_run_without_the_statistical_profiler() -> None:
+    """A local campaign cluster's workers take no stack samples of a running task (Dask's profiler, every 10 ms by
+    default, slowed a run by a sixth): a task busy for 0.5 s leaves the cluster's profile empty."""
+    with dask_client(workers=1) as client:
+        client.submit(_busy_s, 0.5, pure=False).result()
+        assert client.profile()["count"] == 0
+
+
 def test_the_remote_workers_configuration_is_the_local_clusters() -> None:
-    """configs/dask/workers.yaml, which the README gives remote workers, sets what the LocalCluster sets, and on top
-    of Dask's defaults leaves the thread limits in place."""
+    """configs/dask/workers.yaml, which the README gives remote workers, sets what the LocalCluster sets (glibc's heap
+    tuning, no profiler), and on top of Dask's defaults leaves the thread limits in place."""
     import dask.config
     import yaml
 
-    from flyby.montecarlo.engine import WORKER_ENVIRON
+    from flyby.montecarlo.engine import WORKER_CONFIG
     shipped = yaml.safe_load((Path(__file__).resolve().parents[2] / "configs" / "dask" / "workers.yaml").read_text())
-    for key, value in WORKER_ENVIRON.items():
+    for key, value in WORKER_CONFIG.items():
         assert dask.config.get(key, config=shipped) == value
     merged = dask.config.merge(dask.config.config, shipped)["distributed"]["nanny"]["pre-spawn-environ"]
     assert merged["MALLOC_TRIM_THRESHOLD_"] is None and merged["OMP_NUM_THREADS"] == 1
