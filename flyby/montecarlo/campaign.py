@@ -9,6 +9,7 @@ that fails is returned as a failure with its traceback, so one bad draw never st
 
 from __future__ import annotations
 
+import gc
 import json
 import traceback
 from dataclasses import dataclass, field
@@ -81,6 +82,15 @@ class RunResult:
         return self.ok and self.figures.get("all_pass") == 1
 
 
+def _freeze_heap() -> None:
+    """After a process's first run, move what is alive then (modules, compiled kernels, the campaign) out of the
+    garbage collector's sight: a Dask worker holds 200,000 such objects, which every full collection walked again
+    (71 ms of collection a centroid-level run against 24 ms frozen, measured in a worker)."""
+    if gc.get_freeze_count() == 0:
+        gc.collect()
+        gc.freeze()
+
+
 def run_one(payload: str, k: int) -> RunResult:
     """Run k of the campaign ``payload`` (``Campaign.to_json``); a failure is returned with its traceback."""
     clock = WallClock()  # contracts.clock is the one module reading the machine's time
@@ -99,6 +109,7 @@ def run_one(payload: str, k: int) -> RunResult:
         status, error = "ok", None
     except Exception:  # noqa: BLE001 - any failure of a run is a result of the campaign, stored with its traceback
         row, status, error = {}, "error", traceback.format_exc()
+    _freeze_heap()
     return RunResult(run=k, seed=seed, status=status, error=error, wall_s=clock.now() - t0,
                      sim_s=sc.universe.end_s - sc.universe.start_s, figures=row, values=values)
 

@@ -136,6 +136,22 @@ def test_a_campaign_stopped_and_resumed_equals_one_run_whole(tiny: Path, tmp_pat
     assert all(r["in_view_fraction"] is not None and r["mode_changes"] >= 1 for r in expected)
 
 
+def test_a_worker_freezes_its_heap_once(tiny: Path) -> None:
+    """A process's first run moves what is alive then out of the collector's sight (full collections stop walking
+    modules and compiled kernels); later runs freeze nothing more, so their garbage stays collectable."""
+    import subprocess
+    import sys
+    code = ("import gc, sys\nfrom pathlib import Path\n"
+            "from flyby.montecarlo.campaign import build_campaign, run_one\n"
+            "p = build_campaign(Path(sys.argv[1])).to_json()\n"
+            "before = gc.get_freeze_count()\nrun_one(p, 0)\nfirst = gc.get_freeze_count()\n"
+            "run_one(p, 1)\nprint(before, first, gc.get_freeze_count())\n")
+    out = subprocess.run([sys.executable, "-c", code, str(tiny)], cwd=ROOT, capture_output=True, text=True,
+                         check=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    before, first, second = map(int, out.stdout.split())
+    assert before == 0 and first > 10_000 and second == first
+
+
 def test_a_run_that_raises_is_stored_with_its_traceback(tiny: Path, tmp_path: Path) -> None:
     """A draw that makes an invalid scenario fails its run, stored with the traceback naming the field; the
     campaign goes on."""
