@@ -71,7 +71,7 @@ from obsw.event_action import EventActions
 from obsw.executive import Activation, EventKind, Executive, FrameReport, Run, TaskSpec
 from obsw.frame_quality import FrameWatch, saturated_fraction
 from obsw.imaging import BadPixelMap, Detections, los_body, measured_detections, predict_frame, process_frame
-from obsw.imaging_geometry import FramePrediction, LosKnowledge
+from obsw.imaging_geometry import FramePrediction, LosKnowledge, matrix_of_quaternion
 from obsw.lock_gate import Estimate, LockGate, Prediction
 from obsw.modes import (CaEstimate, Cause, FalseLock, Fault, ModeEvent, ModeManager, TargetDetected, Tick,
                         WheelSaturation)
@@ -224,7 +224,7 @@ class FlightSoftware:
         self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
         self._requester: int | None = None  # source id of the TC being executed: its responses go there
         self._attitude_history: deque[tuple[float, np.ndarray]] = deque(maxlen=ATTITUDE_HISTORY_PERIODS)
-        self._exposure_rotation: tuple[np.ndarray, Rotation] | None = None  # (an attitude of the history, its rotation)
+        self._exposure_rotation: tuple[np.ndarray, np.ndarray] | None = None  # (an attitude of the history, its matrix)
         self.autonomous_trajectory: NominalTrajectory | None = None
         self._autonomous_count = -1
         self._hk_next: float | None = None
@@ -995,8 +995,8 @@ class FlightSoftware:
         q = self._attitude_at(obt)
         # Didymos's and Dimorphos's lines of sight of a frame turn with one attitude: its rotation is built once
         if self._exposure_rotation is None or self._exposure_rotation[0] is not q:
-            self._exposure_rotation = (q, Rotation.from_quat(q))
-        return self._exposure_rotation[1].apply(los_b)
+            self._exposure_rotation = (q, matrix_of_quaternion(q))
+        return self._exposure_rotation[1] @ los_b
 
     def _los_knowledge(self, recognised: NominalTrajectory | None, obt: float) -> LosKnowledge | None:
         """The continuous estimate's line of sight at ``obt``, when the recognised trajectory is that estimate's, with

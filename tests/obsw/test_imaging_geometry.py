@@ -12,7 +12,7 @@ from scipy.spatial.transform import Rotation
 
 from obsw.config import CameraKnowledge, ImagingConfig, TargetKnowledge
 from obsw.imaging import focal_length_px, predict_frame
-from obsw.imaging_geometry import LIT_CENTROID_FACTOR, LosKnowledge, phase_offset_px
+from obsw.imaging_geometry import LIT_CENTROID_FACTOR, LosKnowledge, matrix_of_quaternion, phase_offset_px
 from obsw.trajectory import NominalTrajectory
 
 CFG = ImagingConfig()
@@ -146,3 +146,26 @@ def test_without_a_trajectory_only_the_sun_is_predicted() -> None:
     p = predict_frame(np.array([0.0, 0.0, 0.0, 1.0]), TargetKnowledge(), CAMERA, CFG)
     assert p.didymos_radius_px is None and p.dimorphos_col_row is None and p.orbit_radius_max_px is None
     assert math.hypot(*p.sun_camera) == pytest.approx(1.0)
+
+
+_component = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.tuples(_component, _component, _component, _component).filter(lambda q: sum(c * c for c in q) > 1e-6),
+       st.floats(1e-3, 1e3), st.tuples(_component, _component, _component))
+def test_the_quaternion_matrix_turns_vectors_as_scipy_does_to_the_last_bit(
+        q: tuple[float, float, float, float], scale: float, v: tuple[float, float, float]) -> None:
+    """matrix_of_quaternion(q) @ v equals SciPy's Rotation.from_quat(q).apply(v) bit for bit, q of any norm."""
+    quat = np.array(q) * scale
+    vec = np.array(v)
+    m = matrix_of_quaternion(quat)
+    rotation = Rotation.from_quat(quat)
+    assert np.array_equal(m, rotation.as_matrix())
+    assert np.array_equal(m @ vec, rotation.apply(vec))
+
+
+def test_a_zero_quaternion_is_refused_by_name() -> None:
+    """A zero quaternion has no rotation: a ValueError naming it, as SciPy refuses it."""
+    with pytest.raises(ValueError, match="quaternion must not be zero"):
+        matrix_of_quaternion(np.zeros(4))
