@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections import deque
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -64,6 +63,7 @@ from contracts.messages import FrameMeta, FrameRequest, StepReply, StepRequest
 from contracts.mode import Mode
 from contracts.task import Task
 from obsw.attitude import AttitudeEstimator
+from obsw.attitude_history import AttitudeHistory
 from obsw.config import ObswConfig
 from obsw.control import boresight_error_rad, pd_torque_nm, wheel_torques_nm
 from obsw.errors import CommandRejected, InternalFault, RejectReason
@@ -223,7 +223,7 @@ class FlightSoftware:
         self._last_frame_id = 0
         self._time_status = pus.TimeReferenceStatus.FREE_RUNNING
         self._requester: int | None = None  # source id of the TC being executed: its responses go there
-        self._attitude_history: deque[tuple[float, np.ndarray]] = deque(maxlen=ATTITUDE_HISTORY_PERIODS)
+        self._attitude_history = AttitudeHistory(ATTITUDE_HISTORY_PERIODS)
         self._exposure_rotation: tuple[np.ndarray, np.ndarray] | None = None  # (an attitude of the history, its matrix)
         self.autonomous_trajectory: NominalTrajectory | None = None
         self._autonomous_count = -1
@@ -453,7 +453,7 @@ class FlightSoftware:
         est = self.attitude.step(np.asarray(req.sensors.gyro_rad_s, dtype=float),
                                  None if st is None else np.asarray(st, dtype=float), self.cfg.control_period_s)
         self._q, self._omega, self._bias, self._attitude_sigma_rad = est.q, est.omega_rad_s, est.bias_rad_s, est.sigma_rad
-        self._attitude_history.append((req.obt_s, est.q))
+        self._attitude_history.append(req.obt_s, est.q)
         if est.outage != self._star_tracker_out:
             self._star_tracker_out = est.outage
             if est.outage:
@@ -654,8 +654,7 @@ class FlightSoftware:
         self.modes.shift_time(step_s)
         self.frame_watch.shift(step_s)
         self.lock_gate.shift(step_s)
-        self._attitude_history = deque(((t + step_s, q) for t, q in self._attitude_history),
-                                       maxlen=ATTITUDE_HISTORY_PERIODS)
+        self._attitude_history = self._attitude_history.shifted(step_s)
         if self._last_seen_obt is not None:
             self._last_seen_obt += step_s
         if self._outage_start is not None:
@@ -898,7 +897,7 @@ class FlightSoftware:
     # -- attitude estimate ---------------------------------------------------------------------------------
     def _attitude_at(self, obt_s: float) -> np.ndarray:
         """The attitude estimate of the control period nearest ``obt_s`` (a frame's exposure time)."""
-        return min(self._attitude_history, key=lambda e: abs(e[0] - obt_s))[1]
+        return self._attitude_history.nearest(obt_s)
 
     # -- imaging -------------------------------------------------------------------------------------------
     def _image(self, frame: np.ndarray | None, meta: FrameMeta, act: Activation) -> Detections:
