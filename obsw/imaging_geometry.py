@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from obsw.config import CameraKnowledge, ImagingConfig, TargetKnowledge
 from obsw.trajectory import NominalTrajectory
@@ -117,9 +116,10 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
     offsets (run 13 of the nominal image-level campaign, a camera misaligned by 0.034 deg: 4-6 px off with 0.2-0.5 px
     stated; with the estimate's line of sight 0.5-3.6 px off, each within the 3-6 px stated)."""
     n = cfg.binned_size_px
-    to_camera = Rotation.from_quat(q_body_to_inertial).inv()
+    # inertial -> camera: the transpose, contiguous (then ``@`` is SciPy's ``inv().apply`` to the last bit)
+    to_camera = np.ascontiguousarray(matrix_of_quaternion(q_body_to_inertial).T)
     sun = np.asarray(targets.sun_direction_inertial, dtype=float)
-    sun_c = to_camera.apply(sun / np.linalg.norm(sun))
+    sun_c = to_camera @ (sun / np.linalg.norm(sun))
     sun_t = (float(sun_c[0]), float(sun_c[1]), float(sun_c[2]))
     if trajectory is None or obt_s is None:
         return FramePrediction(sun_camera=sun_t)
@@ -131,14 +131,14 @@ def predict_frame(q_body_to_inertial: np.ndarray, targets: TargetKnowledge, came
                                       1e-3 * trajectory.ca_distance_km))
                for dt in (-1.0, 1.0) for dd in (-1.0, 1.0)]
     nearest = min([rng] + [float(c.range_m(obt_s)) for c in corners])
-    place = _camera_px(to_camera.apply(trajectory.los_inertial(obt_s)), f, n)
+    place = _camera_px(to_camera @ trajectory.los_inertial(obt_s), f, n)
     spread = 0.0
     if los is not None and place is not None \
-            and (seen := _camera_px(to_camera.apply(np.asarray(los.los_inertial, dtype=float)), f, n)) is not None:
+            and (seen := _camera_px(to_camera @ np.asarray(los.los_inertial, dtype=float), f, n)) is not None:
         place, spread = seen, los.bound_rad * f
     elif place is not None:  # the corners' spread, needed only without the estimate's line of sight
         for c in corners:
-            p = _camera_px(to_camera.apply(c.los_inertial(obt_s)), f, n)
+            p = _camera_px(to_camera @ c.los_inertial(obt_s), f, n)
             spread = max(spread, math.inf if p is None else math.dist(p, place))
     return FramePrediction(
         sun_camera=sun_t,

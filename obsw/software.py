@@ -56,7 +56,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from contracts import pus, sdls
 from contracts.messages import FrameMeta, FrameRequest, StepReply, StepRequest
@@ -1103,7 +1102,7 @@ class FlightSoftware:
         if ref is None or self._reference_obt is None or self._settle_since_obt is None \
                 or self._reference_obt <= self._settle_since_obt:
             return False
-        aim = Rotation.from_quat(ref.q_des).apply(self.camera.boresight_body)
+        aim = matrix_of_quaternion(ref.q_des) @ np.asarray(self.camera.boresight_body, dtype=float)
         return boresight_error_rad(self._q, self.camera.boresight_body, aim) \
             <= math.radians(self.cfg.modes.acquisition_settle_deg)
 

@@ -156,13 +156,16 @@ _component = st.floats(-1.0, 1.0, allow_nan=False)
        st.floats(1e-3, 1e3), st.tuples(_component, _component, _component))
 def test_the_quaternion_matrix_turns_vectors_as_scipy_does_to_the_last_bit(
         q: tuple[float, float, float, float], scale: float, v: tuple[float, float, float]) -> None:
-    """matrix_of_quaternion(q) @ v equals SciPy's Rotation.from_quat(q).apply(v) bit for bit, q of any norm."""
+    """matrix_of_quaternion(q) @ v equals SciPy's Rotation.from_quat(q).apply(v) bit for bit, q of any norm, and
+    its contiguous transpose the inverse's apply."""
     quat = np.array(q) * scale
     vec = np.array(v)
     m = matrix_of_quaternion(quat)
     rotation = Rotation.from_quat(quat)
     assert np.array_equal(m, rotation.as_matrix())
     assert np.array_equal(m @ vec, rotation.apply(vec))
+    # the inverse turn: the transpose, made contiguous (a strided transpose sums in another order)
+    assert np.array_equal(np.ascontiguousarray(m.T) @ vec, rotation.inv().apply(vec))
 
 
 def test_a_zero_quaternion_is_refused_by_name() -> None:
