@@ -253,9 +253,9 @@ class FlightSoftware:
         self._star_tracker_out = False
         self._outage_start: float | None = None
         # the torques of the last reply and of the one before, and when the last took effect: what the wheels got
-        self._applied: tuple[np.ndarray, np.ndarray, float] = (np.zeros(n_wheels), np.zeros(n_wheels), 0.0)
-        self._no_impulse = np.zeros(n_wheels)  # the impulse reset at each measurement (never written: sums make anew)
-        self._no_impulse.setflags(write=False)
+        # (Python floats: per wheel, the same arithmetic as NumPy's at a fifth of the cost on three or four values)
+        self._applied: tuple[tuple[float, ...], tuple[float, ...], float] = ((0.0,) * n_wheels, (0.0,) * n_wheels, 0.0)
+        self._no_impulse = (0.0,) * n_wheels  # the impulse reset at each measurement
         self._impulse = self._no_impulse  # impulse commanded to each wheel since the last momentum measured, N m s
         self._impulse_s = 0.0  # the time it spans, s
         self._measured_h = False  # the attitude task measured the wheel momenta this period
@@ -330,7 +330,8 @@ class FlightSoftware:
         self._step_sequence = self.executive.sequence  # events posted from here on are on this tick's time scale
         # the impulse of the period that ended at this tick: the torques before until the last reply's took effect
         before, after, d = self._applied
-        self._impulse = self._impulse + before * d + after * (self.cfg.control_period_s - d)
+        rest = self.cfg.control_period_s - d
+        self._impulse = tuple(i + b * d + a * rest for i, b, a in zip(self._impulse, before, after))
         self._impulse_s += self.cfg.control_period_s
         self._measured_h = False
         for raw in req.uplink:
@@ -353,9 +354,10 @@ class FlightSoftware:
             self._event(pus.FrameOverrunEvent(minor_frame=report.minor_frame, late_s=late), next_tick,
                         f"minor frame {report.minor_frame} overran the next tick by {late * 1e3:.1f} ms")
         self._frame_overrunning = report.overrun
-        self._applied = (self._applied[1], self._torque.copy(), self._actuation_delay_s)
+        torque = tuple(self._torque.tolist())
+        self._applied = (self._applied[1], torque, self._actuation_delay_s)
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
-        return StepReply(step=req.step, wheel_torque_nm=tuple(self._torque.tolist()), clock_adjust_s=adjust,
+        return StepReply(step=req.step, wheel_torque_nm=torque, clock_adjust_s=adjust,
                          frame_request=self._frame_request_out, downlink=tuple(self._tm),
                          actuation_delay_s=self._actuation_delay_s)
 
