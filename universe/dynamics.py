@@ -99,6 +99,7 @@ class SpacecraftDynamics:
         self._smooth = float(w.coulomb_smoothing_rad_s)
         self._max_substep_s = float(sc.integration_substep_s)
         self._modes: dict[frozenset[int], _Mode] = {}
+        self._stepped: AttitudeState | None = None  # the state the last step returned
         # Friction's stiffness on the rotor speed, 1/s: RK4 substeps are kept below 0.5 / this.
         self._friction_rate_s = (self._viscous + self._coulomb / self._smooth) / self.rotor_inertia_kgm2 * 1.01
 
@@ -142,7 +143,7 @@ class SpacecraftDynamics:
         u = np.asarray(torque_nm, dtype=float)
         if u.shape != (self.n_wheels,):
             raise DynamicsError(f"{name} must have shape ({self.n_wheels},), got {u.shape}")
-        if not all(math.isfinite(x) for x in u.tolist()):  # a few wheels: cheaper than a NumPy reduction
+        if not all(map(math.isfinite, u.tolist())):  # a few wheels: cheaper than a NumPy reduction
             raise DynamicsError(f"{name} must be finite, got {u.tolist()}")
         return u
 
@@ -200,7 +201,8 @@ class SpacecraftDynamics:
         max_torque_nm and cut back at the momentum limit. A failed wheel gets no motor torque (friction spins it
         down); a stuck wheel's rotor is locked to the body (its relative momentum passes to the body at once).
         """
-        self._check_state(state)
+        if state is not self._stepped:  # the state returned by the last step has its shapes and a unit q, as made
+            self._check_state(state)
         u_cmd = self._torques(torque_cmd_nm, "torque_cmd_nm")
         u_before = u_cmd if before_nm is None else self._torques(before_nm, "before_nm")
         if not dt_s >= 0.0:
@@ -232,4 +234,5 @@ class SpacecraftDynamics:
         period(q, w, h, u_before, u_cmd, switch_s, dt_s, motor_on, self.max_torque_nm, self._max_substep_s,
                self._friction_rate_s, mode.free_axes, mode.gain, mode.i_eff_flat, mode.i_eff_inv_flat, jw,
                self.max_momentum_nms, self._viscous, self._coulomb, 1.0 / self._smooth, a, mode.free, out)
-        return AttitudeState(q=out[:4], omega_rad_s=out[4:7], wheel_speed_rad_s=out[7:])
+        self._stepped = AttitudeState(q=out[:4], omega_rad_s=out[4:7], wheel_speed_rad_s=out[7:])
+        return self._stepped

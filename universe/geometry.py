@@ -165,18 +165,18 @@ class FlybyGeometry:
         t = np.asarray(t_s, dtype=float)[..., None]
         return np.radians(self.bodies.orbit_phase_deg) + self.mean_motion_rad_s * t
 
-    def _orbit_unit(self, t_s: ArrayLike) -> np.ndarray:
-        """Return the unit vector from Didymos to Dimorphos at t_s."""
+    def orbit_unit(self, t_s: ArrayLike) -> np.ndarray:
+        """Return the unit vector from Didymos to Dimorphos at t_s (both centres are their arms times it)."""
         ph = self._orbit_phase_rad(t_s)
         return np.cos(ph) * self.orbit_e1 + np.sin(ph) * self.orbit_e2
 
     def dimorphos_position_m(self, t_s: ArrayLike) -> np.ndarray:
         """Return the Dimorphos centre relative to the barycentre, m."""
-        return self.dimorphos_arm_m * self._orbit_unit(t_s)
+        return self.dimorphos_arm_m * self.orbit_unit(t_s)
 
     def didymos_position_m(self, t_s: ArrayLike) -> np.ndarray:
         """Return the Didymos centre relative to the barycentre, m (opposite Dimorphos, scaled by the mass ratio)."""
-        return -self.didymos_arm_m * self._orbit_unit(t_s)
+        return -self.didymos_arm_m * self.orbit_unit(t_s)
 
     def dimorphos_velocity_m_s(self, t_s: ArrayLike) -> np.ndarray:
         """Return the Dimorphos velocity relative to the barycentre, m/s."""

@@ -146,12 +146,14 @@ class Oscillator:
                 f"OBT readings must come in true-time order: "
                 f"{t_true_s} s is before the last reading at {self._last_t} s"
             )
-        reading = self.obt_mean_s(t_true_s)
+        # obt_mean_s, its domain checked just above; without jumps their sums are all the integer 0, as _jumps_up_to's
+        jumps = self._jumps_up_to(t_true_s) if self._jump_at else 0
+        reading = self._base_s(t_true_s) + jumps
         if self._bound_s > 0.0:
             e = float(self._rng.normal(0.0, self.cfg.jitter_s))
             reading += min(max(e, -self._bound_s), self._bound_s)
         if self._last_t is not None and self._last_obt is not None:
-            crossed = self._jumps_up_to(t_true_s) - self._jumps_up_to(self._last_t)
+            crossed = jumps - self._jumps_up_to(self._last_t) if self._jump_at else 0
             reading = max(reading, self._last_obt + crossed)
         self._last_t = t_true_s
         self._last_obt = reading

@@ -49,6 +49,9 @@ def pointing_attitude(los_inertial: np.ndarray, roll_ref_inertial: np.ndarray) -
     return Rotation.from_matrix(np.column_stack([x, np.cross(z, x), z]))
 
 
+_NO_WHEELS: frozenset[int] = frozenset()
+
+
 @dataclass(slots=True)
 class _Period:
     """The state of one control period, kept until the next ground step turns it into a TruthRecord: the geometry
@@ -71,10 +74,17 @@ class FaultBook:
         self._started: set[int] = set()
         self._ended: set[int] = set()
         self._first_call = True
+        # the faults of each kind, in scenario order: asked for several kinds a period, most of which have none
+        self._by_kind: dict[str, list[FaultConfig]] = {}
+        for f in self.faults:
+            self._by_kind.setdefault(f.kind, []).append(f)
 
     def active(self, kind: str, t_s: float) -> list[FaultConfig]:
         """Faults of ``kind`` whose window contains ``t_s``."""
-        return [f for f in self.faults if f.kind == kind and f.start_s <= t_s < f.end_s]
+        of_kind = self._by_kind.get(kind)
+        if of_kind is None:
+            return []
+        return [f for f in of_kind if f.start_s <= t_s < f.end_s]
 
     def still_active(self, t_s: float) -> Iterator[str]:
         """Log lines for the faults still active when the run ends at ``t_s`` (they never got an end line)."""
@@ -96,14 +106,18 @@ class FaultBook:
                     self._started.add(i)
                     self._ended.add(i)
         for i, f in enumerate(self.faults):
-            what = f.kind + (f" wheel {f.wheel}" if f.wheel is not None else "") + (
-                f" magnitude {f.magnitude:g}" if f.magnitude is not None else "")
             if i not in self._started and t_s >= f.start_s:
                 self._started.add(i)
-                yield f"fault start t={t_s:.2f} s: {what} (window {f.start_s:g}..{f.end_s:g} s)"
+                yield f"fault start t={t_s:.2f} s: {self._what(f)} (window {f.start_s:g}..{f.end_s:g} s)"
             if i in self._started and i not in self._ended and t_s >= f.end_s:
                 self._ended.add(i)
-                yield f"fault end   t={t_s:.2f} s: {what}"
+                yield f"fault end   t={t_s:.2f} s: {self._what(f)}"
+
+    @staticmethod
+    def _what(f: FaultConfig) -> str:
+        """The fault's kind, wheel and magnitude, for its log lines."""
+        return f.kind + (f" wheel {f.wheel}" if f.wheel is not None else "") + (
+            f" magnitude {f.magnitude:g}" if f.magnitude is not None else "")
 
 
 class Universe:
@@ -141,6 +155,7 @@ class Universe:
         self.shapes = body_shapes(seed)
         self.measurement = MeasurementState()  # centroid-level fidelity: a misidentification episode under way
         self._dark_frames: dict[float, np.ndarray] = {}
+        self._no_bias = np.zeros(3)  # the gyro's fault step when none is active (added all the same: the same bits)
 
     def _approach_history(self) -> list[tuple[float, bytes]]:
         """The service 9 time reports of the approach before the run, with the true time each reached ground.
@@ -196,8 +211,7 @@ class Universe:
             )
         self.link.downlink.send(self.t_s, reply.downlink, outage=bool(self.faults.active("link_outage", self.t_s)))
         previous_nm, self.torque_nm = self.torque_nm, np.asarray(reply.wheel_torque_nm, dtype=float)
-        stuck = frozenset(f.wheel for f in self.faults.active("wheel_stuck", self.t_s) if f.wheel is not None)
-        failed = frozenset(f.wheel for f in self.faults.active("wheel_failed", self.t_s) if f.wheel is not None)
+        stuck, failed = self._wheels("wheel_stuck"), self._wheels("wheel_failed")
         # the wheels keep the previous torques until the control task's modelled finish, then take the new ones
         delay = min(reply.actuation_delay_s, self.dt_s)
         self.state = self.dynamics.step(self.state, self.torque_nm, self.dt_s, stuck, failed, before_nm=previous_nm,
@@ -218,8 +232,9 @@ class Universe:
     def _request(self, frame_requested: bool,
                  exposure_s: float | None = None) -> tuple[StepRequest, bytes | memoryview]:
         outage = bool(self.faults.active("star_tracker_outage", self.t_s))
-        bias = sum((np.radians(f.magnitude or 0.0) * np.ones(3) for f in self.faults.active("gyro_bias_step", self.t_s)),
-                   np.zeros(3))
+        steps = self.faults.active("gyro_bias_step", self.t_s)
+        bias = (sum((np.radians(f.magnitude or 0.0) * np.ones(3) for f in steps), np.zeros(3)) if steps
+                else self._no_bias)
         r = self.sensors.measure(self.t_s, self.state, self.dt_s, star_tracker_out=outage, gyro_bias_step_rad_s=bias)
         sensors = SensorData(  # the readings' arrays as Python floats (tolist: float() of each, at once)
             star_tracker_q=None if r.star_tracker_q is None else tuple(r.star_tracker_q.tolist()),
@@ -231,10 +246,17 @@ class Universe:
         if frame_requested:
             meta, blob = self._frame(exposure_s or self.cfg.camera.exposure_s)
         # the processor's speed and the camera interface's delay, as the OBSW node's processor model reads them
-        slowdown = float(math.prod(f.magnitude or 1.0 for f in self.faults.active("cpu_overload", self.t_s)))
-        delay = sum(f.magnitude or 0.0 for f in self.faults.active("imaging_latency", self.t_s)) if meta else 0.0
+        overload = self.faults.active("cpu_overload", self.t_s)
+        slowdown = float(math.prod(f.magnitude or 1.0 for f in overload)) if overload else 1.0
+        latency = self.faults.active("imaging_latency", self.t_s) if meta else None
+        delay = sum(f.magnitude or 0.0 for f in latency) if latency else 0.0
         return StepRequest(step=self.step, obt_s=self._obt_s, sensors=sensors, uplink=uplink, frame=meta,
                            cpu_slowdown=slowdown, imaging_delay_s=delay), blob
+
+    def _wheels(self, kind: str) -> frozenset[int]:
+        """The wheels of the faults of ``kind`` active now."""
+        active = self.faults.active(kind, self.t_s)
+        return frozenset(f.wheel for f in active if f.wheel is not None) if active else _NO_WHEELS
 
     def _frame(self, exposure_s: float) -> tuple[FrameMeta | None, bytes | memoryview]:
         if self.faults.active("frame_lost", self.t_s):

@@ -44,7 +44,12 @@ def _camera_to_body(boresight: tuple[float, float, float]) -> np.ndarray:
 
 def camera_to_inertial_matrix(scene: Scene, cfg: CameraConfig) -> np.ndarray:
     """3x3 matrix taking camera-frame vectors to the inertial frame."""
-    return quat_matrix(scene.q_body_to_inertial) @ _camera_to_body(tuple(cfg.boresight_body))
+    return camera_to_inertial(scene.q_body_to_inertial, cfg)
+
+
+def camera_to_inertial(q_body_to_inertial: np.ndarray, cfg: CameraConfig) -> np.ndarray:
+    """3x3 matrix taking camera-frame vectors to the inertial frame, in the attitude of a unit [x, y, z, w]."""
+    return quat_matrix(q_body_to_inertial) @ _camera_to_body(tuple(cfg.boresight_body))
 
 
 def project_inertial(scene: Scene, cfg: CameraConfig, point_inertial: np.ndarray) -> tuple:
