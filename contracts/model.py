@@ -10,7 +10,7 @@ from __future__ import annotations
 import types
 import typing
 from enum import IntEnum
-from typing import Annotated, Any, get_args, get_origin
+from typing import Annotated, Any, Self, get_args, get_origin
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, PlainSerializer, Strict
 
@@ -19,6 +19,52 @@ class Frozen(BaseModel):
     """An immutable pydantic model that forbids fields it does not declare."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
+
+    @classmethod
+    def trusted(cls, **values: Any) -> Self:
+        """``cls(**values)`` without validation, for values a program made itself, each already of its field's type
+        as validation would leave it (a float field a float, a tuple field a tuple of them): never for input.
+
+        ``model_construct`` in a fifth of the time (its Python loop over the fields costs more than pydantic-core's
+        validation, this a dictionary copy); unknown or missing fields still raise TypeError.
+        """
+        defaults, required = _TEMPLATES.get(cls) or _template(cls)
+        fields = defaults.copy()  # every field in declaration order, as validation makes the model's __dict__
+        fields.update(values)
+        if len(fields) != len(defaults) or not required <= values.keys():  # an unknown field adds a key
+            unknown, missing = sorted(values.keys() - defaults.keys()), sorted(required - values.keys())
+            raise TypeError(f"{cls.__name__}.trusted: unknown fields {unknown}, missing fields {missing}")
+        model = cls.__new__(cls)
+        _setattr(model, "__dict__", fields)
+        _setattr(model, "__pydantic_fields_set__", set(values))
+        _setattr(model, "__pydantic_extra__", None)
+        _setattr(model, "__pydantic_private__", None)
+        return model
+
+
+_setattr = object.__setattr__  # a frozen model's attributes are set as pydantic's model_construct sets them
+# per class that ``Frozen.trusted`` made: each field's default (None for a required field) in declaration order, and
+# the required fields
+_TEMPLATES: dict[type[Frozen], tuple[dict[str, Any], frozenset[str]]] = {}
+_IMMUTABLE = (type(None), bool, int, float, str, bytes, tuple, frozenset, IntEnum)
+
+
+def _template(cls: type[Frozen]) -> tuple[dict[str, Any], frozenset[str]]:
+    """The defaults and required fields of ``cls`` for ``Frozen.trusted`` (TypeError if it cannot make it)."""
+    if cls.__private_attributes__ or cls.__pydantic_post_init__ is not None:
+        raise TypeError(f"{cls.__name__}.trusted: a model with private attributes or a post-init hook is not supported")
+    defaults: dict[str, Any] = {}
+    required = set()
+    for name, info in cls.model_fields.items():
+        if info.is_required():
+            required.add(name)
+            defaults[name] = None
+        elif info.default_factory is not None or not isinstance(info.default, _IMMUTABLE):
+            raise TypeError(f"{cls.__name__}.trusted: the default of {name} is not an immutable value")
+        else:
+            defaults[name] = info.default
+    _TEMPLATES[cls] = defaults, frozenset(required)
+    return _TEMPLATES[cls]
 
 
 def strict_numbers(tp: Any) -> Any:

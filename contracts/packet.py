@@ -203,7 +203,7 @@ def layout_of(cls: type[Record]) -> tuple[Item, ...]:
 def built(cls: type[Frozen], kind: str, **fields: Any) -> Any:
     """Construct ``cls`` from decoded fields, turning a validation error into BadArgument naming the field."""
     try:
-        return cls(**fields)
+        return cls.__pydantic_validator__.validate_python(fields)  # cls(**fields), without repacking the fields
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = ".".join(str(p) for p in err["loc"])

@@ -29,6 +29,9 @@ def packet_len(data: bytes, offset: int = 0) -> int:
     return struct.unpack_from(">H", data, offset + 4)[0] + PRIMARY_HEADER_LEN + 1
 
 
+_STRUCTS: dict[str, struct.Struct] = {}  # each format Reader.take was asked for, compiled once (the fields' few)
+
+
 class Reader:
     """Reads the application data of one packet, naming the field at fault when it runs short."""
 
@@ -43,7 +46,9 @@ class Reader:
 
     def take(self, fmt: str, field: str) -> tuple[Any, ...]:
         """Unpack the big-endian struct ``fmt`` for ``field``."""
-        s = struct.Struct(">" + fmt)
+        s = _STRUCTS.get(fmt)
+        if s is None:
+            s = _STRUCTS[fmt] = struct.Struct(">" + fmt)
         end = self.pos + s.size
         if end > len(self.data):
             raise self.fault(field, f"missing: application data ends at octet {len(self.data)}, "
@@ -344,16 +349,18 @@ class Padded(WireType):
 
 def _fits_f32(x: float) -> float:
     """Accept a float that a float32 can carry (finite values up to F32_MAX, NaN and infinities)."""
-    if math.isfinite(x) and abs(x) > F32_MAX:
+    if -F32_MAX <= x <= F32_MAX:  # nearly every value: two comparisons, no call (a packet has dozens of them)
+        return x
+    if math.isfinite(x):
         raise ValueError(f"{x!r} exceeds the float32 range of this field (|x| <= {F32_MAX:.4g})")
     return x
 
 
 def _finite(x: float) -> float:
     """Accept a finite float only."""
-    if not math.isfinite(x):
-        raise ValueError(f"must be finite, got {x!r}")
-    return x
+    if -math.inf < x < math.inf:  # finite: two comparisons, no call (NaN compares false)
+        return x
+    raise ValueError(f"must be finite, got {x!r}")
 
 
 def _fits_text(s: str) -> str:

@@ -97,7 +97,9 @@ def _loop(sim: Universe, fsw: FlightSoftware, ground: GroundSegment, out: InProc
             writer.step(request, blob if frame is not None else b"", reply, truth, fsw.security.take_verdicts())
         if on_step is not None:
             on_step(request, reply, frame)
-        out.log += [f"universe: {x}" for x in sim.take_log()] + [f"obsw: {x}" for x in fsw.take_log()]
+        universe_log, obsw_log = sim.take_log(), fsw.take_log()
+        if universe_log or obsw_log:  # most periods log nothing
+            out.log += [f"universe: {x}" for x in universe_log] + [f"obsw: {x}" for x in obsw_log]
         nxt = sim.advance(reply)
         if nxt is None or (max_steps is not None and sim.step >= max_steps):
             break

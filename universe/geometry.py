@@ -75,6 +75,12 @@ def _camera_axes_cached(boresight_body: tuple[float, ...]) -> np.ndarray:
     return np.vstack([x, y, z])
 
 
+@lru_cache(maxsize=64)
+def _tan_half(fov_deg: float) -> float:
+    """tan(fov / 2) of a field of view in degrees (cached: the camera's is asked for at every ground step)."""
+    return float(np.tan(np.radians(fov_deg) / 2.0))
+
+
 @dataclass(frozen=True)
 class TruthSample:
     """The true geometry at one instant, as the flight software would ideally know it."""
@@ -221,16 +227,17 @@ class FlybyGeometry:
         q = np.asarray(q_body_to_inertial, dtype=float)
         if q.ndim != 2 or q.shape[1] != 4 or t.shape != (q.shape[0],):
             raise GeometryError(f"truth_samples needs N times and N quaternions, got shapes {t.shape} and {q.shape}")
-        bad = np.flatnonzero(~(np.abs(np.sqrt(np.sum(q * q, axis=1)) - 1.0) <= 1e-6))
-        if bad.size:
+        unit = np.abs(np.sqrt(np.sum(q * q, axis=1)) - 1.0) <= 1e-6
+        if not unit.all():
+            bad = np.flatnonzero(~unit)
             raise GeometryError(f"q_body_to_inertial must be a unit quaternion of shape (4,), got {q[bad[0]].tolist()}")
         if not 0.0 < fov_deg < 180.0:
             raise GeometryError(f"fov_deg must be in (0, 180), got {fov_deg}")
-        axes = camera_axes_body(np.asarray(boresight_body, dtype=float))
+        # the cached axes themselves, not camera_axes_body's copy: the kernel only reads them
+        axes = _camera_axes_cached(tuple(np.asarray(boresight_body, dtype=float).ravel().tolist()))
         scalars, vectors, in_fov = np.empty((t.size, 5)), np.empty((t.size, 4, 3)), np.empty(t.size, dtype=bool)
         truth_geometry(t, np.ascontiguousarray(q), self._orbit_constants, self.e_ca, self.e_v, self.orbit_e1,
-                       self.orbit_e2, self._sun, axes, float(np.tan(np.radians(fov_deg) / 2.0)), scalars, vectors,
-                       in_fov)
+                       self.orbit_e2, self._sun, axes, _tan_half(fov_deg), scalars, vectors, in_fov)
         return TruthSamples(
             t_s=t,
             range_to_dimorphos_m=scalars[:, 0],

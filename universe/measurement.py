@@ -9,6 +9,7 @@ fitted on image-level runs by ``flyby mc-fit``.
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -27,19 +28,41 @@ if TYPE_CHECKING:
 DRAWS_PER_FRAME = 4  # uniforms (Didymos dropout, Dimorphos seen, misidentification, episode length), 4 normals
 
 
+def interp(x: float, xp: tuple[float, ...], fp: tuple[float, ...]) -> float:
+    """``np.interp(x, xp, fp)`` of one value and an increasing table, the same bits: NumPy's algorithm (its search, its
+    slope and its retries on NaN, in this order) in Python floats, without its conversions of the table to arrays
+    (several microseconds a call inside a run)."""
+    if len(xp) == 1:  # NumPy's own case: left, right and the single value are all fp[0]
+        return float(fp[0])
+    if x != x:
+        return x
+    j = bisect.bisect_right(xp, x) - 1  # xp[j] <= x < xp[j + 1]
+    if j < 0:
+        return float(fp[0])
+    if j >= len(xp) - 1 or xp[j] == x:
+        return float(fp[j])
+    slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
+    y = slope * (x - xp[j]) + fp[j]
+    if y != y:  # NaN in one direction: NumPy tries the other
+        y = slope * (x - xp[j + 1]) + fp[j + 1]
+        if y != y and fp[j] == fp[j + 1]:
+            y = fp[j]
+    return float(y)
+
+
 def bias_fraction(model: CentroidModelConfig, phase_deg: float) -> float:
     """The centroid shift towards the Sun's side at a phase angle, fraction of the apparent radius."""
-    return float(np.interp(phase_deg, model.phase_deg, model.bias_radius_fraction))
+    return interp(phase_deg, model.phase_deg, model.bias_radius_fraction)
 
 
 def dimorphos_dropout(model: CentroidModelConfig, phase_deg: float) -> float:
     """The probability that a visible Dimorphos apart from Didymos is not reported, at a phase angle."""
-    return float(np.interp(phase_deg, model.phase_deg, model.dimorphos_dropout))
+    return interp(phase_deg, model.phase_deg, model.dimorphos_dropout)
 
 
 def merge_probability(model: CentroidModelConfig, gap_px: float) -> float:
     """The probability that Dimorphos is not told from Didymos with this gap between their discs (full-res px)."""
-    return float(np.interp(gap_px, model.merge_gap_px, model.merge_probability))
+    return interp(gap_px, model.merge_gap_px, model.merge_probability)
 
 
 # One body's view in Python floats: (col, row) of its centre (NaN behind the camera), apparent radius (px), phase

@@ -86,7 +86,13 @@ class Sensors:
             raise SensorError(f"state.omega_rad_s must have shape (3,), got {omega.shape}")
         if speeds.shape != (self.n_wheels,):
             raise SensorError(f"state.wheel_speed_rad_s must have shape ({self.n_wheels},), got {speeds.shape}")
-        noise = self._rng.standard_normal(6 + self.n_wheels)
+        slot = None if star_tracker_out else math.floor(t_s * self._st_rate_hz + 1e-9)
+        fresh = slot is not None and (self._st_held is None or slot != self._st_slot)  # a new tracker solution
+        q_true = np.asarray(state.q, dtype=float)
+        if fresh and q_true.shape != (4,):
+            raise SensorError(f"state.q must have shape (4,), got {q_true.shape}")
+        # the tracker's 3 normals come after the gyro's and tachometers' in the stream: drawn with them, in one call
+        noise = self._rng.standard_normal(6 + self.n_wheels + (3 if fresh else 0))
         step = _NO_STEP
         if gyro_bias_step_rad_s is not None:
             step = np.asarray(gyro_bias_step_rad_s, dtype=float)
@@ -98,25 +104,23 @@ class Sensors:
                              self._arw_rad_sqrt_s / math.sqrt(dt_s), self._wheel_sigma_rad_s, step,
                              gyro_bias_step_rad_s is not None, gyro, wheels)
         return SensorReadings(
-            star_tracker_q=self._star_tracker(t_s, state, star_tracker_out),
+            star_tracker_q=self._star_tracker(q_true, slot, noise[6 + self.n_wheels:] if fresh else None),
             gyro_rad_s=gyro,
             wheel_speed_rad_s=wheels,
         )
 
-    def _star_tracker(self, t_s: float, state: AttitudeState, out: bool) -> np.ndarray | None:
-        """Return the star tracker quaternion at t_s: a fresh noisy one at each update slot, else the held one."""
-        if out:
+    def _star_tracker(self, q_true: np.ndarray, slot: int | None, z: np.ndarray | None) -> np.ndarray | None:
+        """Return the star tracker quaternion in update ``slot`` of true time (None: an outage): a fresh noisy one
+        from the normals ``z`` at each new slot, else the held one."""
+        if slot is None:
             # After an outage the tracker reacquires with a fresh solution rather than a stale one.
             self._st_held = None
             self._st_slot = None
             return None
-        slot = math.floor(t_s * self._st_rate_hz + 1e-9)
-        if self._st_held is None or slot != self._st_slot:
-            q_true = np.asarray(state.q, dtype=float)
-            if q_true.shape != (4,):
-                raise SensorError(f"state.q must have shape (4,), got {q_true.shape}")
+        if z is not None:
             held = np.empty(4)
-            star_tracker_q(q_true, self._st_bias_rad, self._st_sigma_rad, self._rng.standard_normal(3), held)
+            star_tracker_q(q_true, self._st_bias_rad, self._st_sigma_rad, z, held)
             self._st_held = held
             self._st_slot = slot
+        assert self._st_held is not None  # a slot's first reading is fresh
         return self._st_held.copy()

@@ -15,7 +15,7 @@ from scenario.model import Scenario
 from tests.numerics import assert_within_ulps
 from universe.camera import Body, Scene, focal_length_px, project_camera, project_inertial
 from universe.config import CameraConfig, CentroidModelConfig, UniverseConfig
-from universe.measurement import MeasurementState, body_view, centroid_measurement, episode_frames
+from universe.measurement import MeasurementState, body_view, centroid_measurement, episode_frames, interp
 
 CAMERA = CameraConfig()
 PERFECT = dict(phase_deg=(0.0,), bias_radius_fraction=(0.0,), dimorphos_dropout=(0.0,), noise_px=0.0,
@@ -237,3 +237,17 @@ def test_a_body_views_centre_is_the_projection_of_its_centre(q: list[float], bor
     cos_phase = -float(sc.sun_direction @ (np.array(centre) / rng))
     # compared by cosines: near 0 and 180 deg, acos turns one ulp of a cosine into 1e-6 deg
     assert math.cos(math.radians(phase_deg)) == pytest.approx(min(max(cos_phase, -1.0), 1.0), abs=1e-12)
+
+
+@settings(max_examples=300, deadline=None)
+@given(table=st.lists(st.tuples(st.floats(-1e3, 1e3), st.floats(-10.0, 10.0)), min_size=1, max_size=12,
+                      unique_by=lambda p: p[0]),
+       x=st.one_of(st.floats(-1.2e3, 1.2e3), st.sampled_from([math.inf, -math.inf, math.nan])))
+def test_interp_is_numpy_s_to_the_bit(table: list[tuple[float, float]], x: float) -> None:
+    """``interp`` of one value gives ``np.interp``'s float, bit for bit, on and between the table's points and beyond."""
+    xp, fp = (tuple(c) for c in zip(*sorted(table), strict=True))
+    for v in (x, *xp, *(0.5 * (a + b) for a, b in zip(xp, xp[1:]))):
+        want = float(np.interp(v, xp, fp))
+        got = interp(v, xp, fp)
+        assert got == want or (math.isnan(got) and math.isnan(want)), (v, xp, fp)
+        assert math.copysign(1.0, got) == math.copysign(1.0, want)

@@ -84,6 +84,23 @@ def test_same_seed_gives_identical_requests_frames_and_truth() -> None:
     assert [req.sensors for req, _ in c[0]] != [req.sensors for req, _ in a[0]]
 
 
+@pytest.mark.parametrize("fidelity", ["image", "centroid"])
+def test_truth_records_are_what_their_validation_would_make(fidelity: str) -> None:
+    """The truth records, made without validation (``Frozen.trusted``), equal their validated copies value for value,
+    type for type and octet for octet of JSON, with and without a frame."""
+    sc = scenario(seed=5, start_s=140.0, end_s=141.2, fidelity=fidelity)
+    _, truth, _ = drive(compose.universe(sc), mixed_replies(12))
+    assert len(truth) == 13 and sum(r.frame_id is not None for r in truth) == 3
+    for record in truth:
+        validated = TruthRecord(**{k: getattr(record, k) for k in record.model_fields_set})
+        assert validated == record and validated.model_dump_json() == record.model_dump_json()
+        assert validated.model_fields_set == record.model_fields_set
+        assert [(k, type(v)) for k, v in validated] == [(k, type(v)) for k, v in record]
+        for k, v in validated:
+            if isinstance(v, tuple):
+                assert [type(x) for x in v] == [type(x) for x in getattr(record, k)], k
+
+
 def test_frame_at_renders_a_run_s_frames_again_from_its_truth() -> None:
     """A new universe of the same scenario, asked in frame order for each frame's truth (time, attitude, rate), gives
     the run's frames bit for bit, and leaves its own time and state alone; out of order, the noise differs."""
