@@ -19,6 +19,7 @@ so coarser stamps of other units parse too.
 from __future__ import annotations
 
 import math
+import struct
 
 from contracts.errors import FlybyError
 
@@ -32,6 +33,8 @@ MAX_COARSE = (1 << (8 * COARSE_OCTETS)) - 1
 MAX_OBT_S = MAX_COARSE + (FINE_TICKS_PER_S - 1) * TICK_S
 
 _AGENCY_EPOCH_ID = 0b010
+_T_FIELD = struct.Struct(">IH")  # the mission's coarse and fine octets
+_STAMP = struct.Struct(">BIH")  # its P-field and T-field
 
 
 class CucError(FlybyError, ValueError):
@@ -71,7 +74,8 @@ def cuc_from_ticks(coarse: int, fine: int) -> bytes:
 
 def cuc_encode(obt_s: float) -> bytes:
     """Return the 7-octet CUC of the tick nearest to ``obt_s`` seconds of OBT."""
-    return cuc_from_ticks(*ticks_from_obt(obt_s))
+    # cuc_from_ticks's octets in one struct: ticks_from_obt's ticks are in range by construction
+    return _STAMP.pack(P_FIELD, *ticks_from_obt(obt_s))
 
 
 def ticks_from_cuc(data: bytes | bytearray | memoryview) -> tuple[int, int]:
@@ -103,7 +107,10 @@ def ticks_from_cuc(data: bytes | bytearray | memoryview) -> tuple[int, int]:
 
 def cuc_decode(data: bytes | bytearray | memoryview) -> float:
     """Return the OBT in seconds of a CUC stamp (P-field + T-field)."""
-    coarse, fine = ticks_from_cuc(data)
+    if len(data) == CUC_LEN and data[0] == P_FIELD:  # the mission's own stamp (every one on board): one struct
+        coarse, fine = _T_FIELD.unpack_from(data, 1)
+    else:
+        coarse, fine = ticks_from_cuc(data)
     return coarse + fine * TICK_S
 
 

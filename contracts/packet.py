@@ -217,18 +217,33 @@ def built(cls: type[Frozen], kind: str, **fields: Any) -> Any:
 _SCALAR, _ENUM, _VECTOR, _PADDED, _CONSTANT, _VALIDITY, _COUNT = range(7)
 
 
+_UNFILLABLE: Any = object()  # an absent value the wire type cannot fill: the item-by-item way raises its error
+
+
 @dataclass(frozen=True)
 class _FixedPlan:
     """One struct for a whole layout: per item, what it is, where its values start and how many it has."""
 
     codec: struct.Struct
-    steps: tuple[tuple[Item, int, int, int, float], ...]  # item, kind, first value, values, fill if absent
+    # per item: kind, name, first value, values, validity bit, the value sent when absent (a field's filler), and
+    # what the kind checks or adds (a constant's value, a count's bounds, an enumeration's members by code, a padded
+    # array's filler); plain tuples, unpacked at each packet
+    steps: tuple[tuple[int, str, int, int, int | None, Any, Any], ...]
     mask: int  # every validity bit the layout declares
     counted: str | None  # the padded array the count counts
     layout: tuple[Item, ...]  # kept, so the id keying the plan cache is never reused
 
 
 _PLANS: dict[tuple[int, tuple[str, ...]], _FixedPlan | None] = {}
+_BITS: dict[int, tuple[tuple[Item, ...], tuple[tuple[str, int], ...]]] = {}  # the layout kept, as in _FixedPlan
+
+
+def _filler(wire: WireType, fill: float) -> Any:
+    """What ``wire`` sends for an absent value, or _UNFILLABLE."""
+    try:
+        return wire.filler(fill)
+    except TypeError:
+        return _UNFILLABLE
 
 
 def _fixed_plan(layout: tuple[Item, ...], left_out: tuple[str, ...]) -> _FixedPlan | None:
@@ -243,23 +258,28 @@ def _fixed_plan(layout: tuple[Item, ...], left_out: tuple[str, ...]) -> _FixedPl
         if it.name in left_out:
             continue
         w, x = it.wire, it.extra
+        aux: Any = None
         if isinstance(x, Validity):
             if x.omit:
                 break
             kind, f, k, fill = _VALIDITY, "B", 1, x.fill
-        elif isinstance(x, Constant | Count):
-            kind, f, k = (_CONSTANT if isinstance(x, Constant) else _COUNT), x.wire.fmt, 1
+        elif isinstance(x, Constant):
+            kind, f, k, aux = _CONSTANT, x.wire.fmt, 1, x.value
+        elif isinstance(x, Count):
+            kind, f, k, aux = _COUNT, x.wire.fmt, 1, (x.low, x.high)
         elif isinstance(w, Number):
             kind, f, k = _SCALAR, w.fmt, 1
         elif isinstance(w, EnumCode):
-            kind, f, k = _ENUM, w.wire.fmt, 1
+            kind, f, k, aux = _ENUM, w.wire.fmt, 1, w.enum._value2member_map_
         elif isinstance(w, Vector | Padded) and isinstance(w.element, Number):
             k = w.n if isinstance(w, Vector) else w.slots
             kind, f = (_VECTOR if isinstance(w, Vector) else _PADDED), w.element.fmt * k
+            aux = w.element.filler(0.0) if isinstance(w, Padded) else None
         else:
             break
         fmt.append(f)
-        steps.append((it, kind, n, k, fill))
+        absent = _filler(w, fill) if x is None else None
+        steps.append((kind, it.name, n, k, it.bit, absent, aux))
         n += k
     else:
         plan = _FixedPlan(struct.Struct(">" + "".join(fmt)), tuple(steps),
@@ -271,10 +291,9 @@ def _fixed_plan(layout: tuple[Item, ...], left_out: tuple[str, ...]) -> _FixedPl
 def _encode_fixed(plan: _FixedPlan, value: Any, flags: int) -> bytes | None:
     """The octets of ``value`` in one struct, or None for the item-by-item way."""
     flat: list[Any] = []
-    for it, kind, _, k, fill in plan.steps:
-        x = it.extra
+    for kind, name, _, k, _, absent, aux in plan.steps:
         if kind == _CONSTANT:
-            flat.append(x.value)  # type: ignore[union-attr]
+            flat.append(aux)
         elif kind == _VALIDITY:
             flat.append(flags)
         elif kind == _COUNT:
@@ -282,9 +301,11 @@ def _encode_fixed(plan: _FixedPlan, value: Any, flags: int) -> bytes | None:
                 return None
             flat.append(len(getattr(value, plan.counted)))
         else:
-            v = getattr(value, it.name)
+            v = getattr(value, name)
             if v is None:
-                v = it.wire.filler(fill)
+                if absent is _UNFILLABLE:
+                    return None
+                v = absent
             if kind == _SCALAR:
                 flat.append(v)
             elif kind == _ENUM:
@@ -297,7 +318,7 @@ def _encode_fixed(plan: _FixedPlan, value: Any, flags: int) -> bytes | None:
                 if len(v) > k:
                     return None
                 flat.extend(v)
-                flat.extend((it.wire.element.filler(0.0),) * (k - len(v)))  # type: ignore[attr-defined]
+                flat.extend((aux,) * (k - len(v)))
     try:
         return plan.codec.pack(*flat)
     except (struct.error, TypeError, ValueError, OverflowError):
@@ -312,50 +333,54 @@ def _decode_fixed(plan: _FixedPlan, r: Reader) -> dict[str, Any] | None:
     raw = plan.codec.unpack_from(r.data, r.pos)
     values: dict[str, Any] = {}
     flags = used = 0
-    for it, kind, i, k, _ in plan.steps:
-        x = it.extra
-        if kind == _CONSTANT:
-            if raw[i] != x.value:  # type: ignore[union-attr]
+    for kind, name, i, k, bit, _, aux in plan.steps:
+        if kind == _SCALAR:
+            v = raw[i]
+        elif kind == _VECTOR:
+            v = raw[i:i + k]
+        elif kind == _CONSTANT:
+            if raw[i] != aux:
                 return None
             continue
-        if kind == _VALIDITY:
+        elif kind == _VALIDITY:
             flags = raw[i]
             if flags & ~plan.mask:
                 return None
             continue
-        if kind == _COUNT:
+        elif kind == _COUNT:
             used = raw[i]
-            if not x.low <= used <= x.high:  # type: ignore[union-attr]
+            if not aux[0] <= used <= aux[1]:
                 return None
             continue
-        if kind == _SCALAR:
-            v = raw[i]
         elif kind == _ENUM:
-            enum = it.wire.enum  # type: ignore[attr-defined]
-            if raw[i] not in enum._value2member_map_:
+            v = aux.get(raw[i])  # the member, as enum(code) gives it
+            if v is None:
                 return None
-            v = enum(raw[i])
-        elif kind == _VECTOR:
-            v = raw[i:i + k]
         else:
             v = raw[i:i + min(used, k)]
-        values[it.name] = v if it.bit is None or flags >> it.bit & 1 else None
+        values[name] = v if bit is None or flags >> bit & 1 else None
     r.pos = end
     return values
 
 
+def _flags(layout: tuple[Item, ...], value: Any) -> int:
+    """The validity flags of ``value``: the bit of each optional field present."""
+    bits = _BITS.get(id(layout))
+    if bits is None:
+        bits = _BITS[id(layout)] = layout, tuple((it.name, it.bit) for it in layout if it.bit is not None)
+    flags = 0
+    for name, bit in bits[1]:
+        if getattr(value, name) is not None:
+            flags |= 1 << bit
+    return flags
+
+
 def encode_items(layout: tuple[Item, ...], value: Any, left_out: tuple[str, ...] = ()) -> bytes:
     """The octets of ``value`` laid out by ``layout``, without the fields ``left_out``."""
-    flags = 0
-    for it in layout:
-        if it.bit is not None and getattr(value, it.name) is not None:
-            flags |= 1 << it.bit
+    flags = _flags(layout, value)
     plan = _fixed_plan(layout, left_out)
     if plan is not None and (octets := _encode_fixed(plan, value, flags)) is not None:
         return octets
-    for it in layout:
-        if it.bit is not None and getattr(value, it.name) is not None:
-            flags |= 1 << it.bit
     out = []
     fill = math.nan
     omit = False

@@ -150,6 +150,9 @@ class FlybyGeometry:
         self.dimorphos_arm_m = float(bodies.orbit_radius_m) / (1.0 + q)
         self.didymos_arm_m = float(bodies.orbit_radius_m) * q / (1.0 + q)
         self._sun = _unit(np.asarray(bodies.sun_direction, dtype=float), "bodies.sun_direction")
+        # the constant terms of the positions, computed once (the same values as computed at each call)
+        self._ca_point_m = self.ca_distance_m * self.e_ca
+        self._orbit_phase0_rad = np.radians(bodies.orbit_phase_deg)
         # what the compiled truth geometry takes (geometry_kernels.truth_geometry)
         self._orbit_constants = np.array([self.ca_time_s, self.ca_distance_m, self.speed_m_s,
                                           float(np.radians(bodies.orbit_phase_deg)), self.mean_motion_rad_s,
@@ -158,7 +161,7 @@ class FlybyGeometry:
     def spacecraft_position_m(self, t_s: ArrayLike) -> np.ndarray:
         """Return the spacecraft position relative to the barycentre at true time t_s, m."""
         dt = np.asarray(t_s, dtype=float)[..., None] - self.ca_time_s
-        return self.ca_distance_m * self.e_ca + self.speed_m_s * dt * self.e_v
+        return self._ca_point_m + self.speed_m_s * dt * self.e_v
 
     def spacecraft_velocity_m_s(self, t_s: ArrayLike) -> np.ndarray:
         """Return the spacecraft velocity relative to the barycentre (constant), m/s."""
@@ -169,7 +172,7 @@ class FlybyGeometry:
     def _orbit_phase_rad(self, t_s: ArrayLike) -> np.ndarray:
         """Return Dimorphos's orbital phase at t_s, rad, with a trailing axis for broadcasting."""
         t = np.asarray(t_s, dtype=float)[..., None]
-        return np.radians(self.bodies.orbit_phase_deg) + self.mean_motion_rad_s * t
+        return self._orbit_phase0_rad + self.mean_motion_rad_s * t
 
     def orbit_unit(self, t_s: ArrayLike) -> np.ndarray:
         """Return the unit vector from Didymos to Dimorphos at t_s (both centres are their arms times it)."""

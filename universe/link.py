@@ -39,6 +39,8 @@ class Pipe:
 
     def arrived(self, t_s: float) -> list[bytes]:
         """Packets whose last bit has arrived by true time ``t_s``, in the order sent."""
+        if not self.in_flight or self.in_flight[0][0] > t_s:  # nothing due (most periods): no lists made
+            return []
         return [p for _, p in self.arrived_timed(t_s)]
 
     def arrived_timed(self, t_s: float) -> list[tuple[float, bytes]]:
