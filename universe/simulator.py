@@ -311,7 +311,8 @@ class Universe:
         err, fov, rng, theta, phase, rng_did = (a.tolist() for a in (
             ts.pointing_error_rad, ts.target_in_fov, ts.range_to_dimorphos_m, ts.theta_rad, ts.phase_angle_deg,
             ts.range_to_didymos_m))
-        los_dim, los_did, cam = (list(map(tuple, a.tolist())) for a in (
+        # each vector column as 3 lists of components zipped into tuples (not one list per vector, then a tuple)
+        los_dim, los_did, cam = (list(zip(*a.T.tolist())) for a in (
             ts.los_dimorphos_inertial, ts.los_didymos_inertial, ts.los_dimorphos_camera))
         out = []
         # trusted, not validated: every value is a Python float, bool, int or tuple of floats of the field's length,

@@ -60,6 +60,10 @@ def test_trusted_makes_what_validation_makes_of_valid_values() -> None:
     assert trusted == validated and trusted.model_dump_json() == validated.model_dump_json()
     assert trusted.model_fields_set == validated.model_fields_set == set(values)
     assert list(trusted.__dict__) == list(validated.__dict__) == list(TruthRecord.model_fields)
+    # the records trusted with the same fields share their set of them: a copy with more fields leaves it alone
+    other = TruthRecord.trusted(**values)
+    copied = other.model_copy(update={"frame_id": 3})
+    assert copied.model_fields_set == set(values) | {"frame_id"} and trusted.model_fields_set == set(values)
     with pytest.raises(TypeError, match="unknown fields \\['colour'\\]"):
         TruthRecord.trusted(**values, colour=1.0)
     with pytest.raises(TypeError, match="missing fields \\['t_s'\\]"):
