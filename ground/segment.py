@@ -340,17 +340,16 @@ class GroundSegment:
     def _security_alarm(self, header: pus.TmHeader, report: pus.TmReport) -> str | None:
         """A security alarm for a verification report of a TC ground never sent (someone else commanded the
         spacecraft, or tried to), or for a TC the spacecraft refused as unauthentic; None otherwise."""
-        at = f"OBT {header.obt_s:.2f} s"
         if isinstance(report, pus.Verification) and report.request_id not in self.state.sent_requests:
             rid = report.request_id
             outcome = "success" if report.success else f"failure 0x{report.failure_code:04X} {report.reason}"
-            return (f"SECURITY ALARM: {at}: {report.stage.name.lower()} {outcome} of TC APID 0x{rid.apid:03X} "
-                    f"sequence {rid.seq_count}, which ground never sent")
+            return (f"SECURITY ALARM: OBT {header.obt_s:.2f} s: {report.stage.name.lower()} {outcome} of TC APID "
+                    f"0x{rid.apid:03X} sequence {rid.seq_count}, which ground never sent")
         if isinstance(report, pus.TcSecurityRejectedEvent):
             known = report.failure_code in pus.FailureCode._value2member_map_
             code = pus.FailureCode(report.failure_code).name if known else f"0x{report.failure_code:04X}"
-            return (f"SECURITY ALARM: {at}: the spacecraft refused an uplinked TC ({code}, SPI {report.spi}, "
-                    f"ARSN {report.arsn})")
+            return (f"SECURITY ALARM: OBT {header.obt_s:.2f} s: the spacecraft refused an uplinked TC ({code}, SPI "
+                    f"{report.spi}, ARSN {report.arsn})")
         return None
 
     def _event_alarm(self, header: pus.TmHeader, report: pus.TmReport) -> str | None:

@@ -221,7 +221,8 @@ class Universe:
         if reply.clock_adjust_s:  # the OBSW commanded its oscillator to step, from this period on
             self.oscillator.jump(self.t_s, reply.clock_adjust_s)
             self._log.append(f"commanded clock step t={self.t_s:.2f} s: OBT {reply.clock_adjust_s:+.6f} s")
-        self._log.extend(self.faults.transitions(self.t_s))
+        if self.faults.faults:  # a scenario without faults has no transitions to look for
+            self._log.extend(self.faults.transitions(self.t_s))
         self._obt_s = self.oscillator.obt_s(self.t_s)
         self._record_truth()
         if self.step >= self.n_steps:
