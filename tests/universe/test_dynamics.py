@@ -307,3 +307,20 @@ def test_torques_switched_within_a_period_equal_two_steps(before, after, switch,
     if at == 0.0:
         plain = dyn.step(state, np.asarray(after), dt, **kw)
         assert np.array_equal(one.q, plain.q) and np.array_equal(one.wheel_speed_rad_s, plain.wheel_speed_rad_s)
+
+
+@settings(max_examples=300, deadline=None)
+@given(w=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3), scale=st.integers(-9, 1),
+       layout=st.sampled_from(["orthogonal", "pyramid"]))
+def test_ndarray_dot_is_matmul_to_the_bit(w: list[float], scale: int, layout: str) -> None:
+    """The rotor momenta are computed with ``ndarray.dot`` where matmul was (it skips the generalised ufunc's set-up):
+    the same BLAS product, so the same bits, on the spacecraft's axes as on the camera's 3 x 3 matrices."""
+    from universe.camera.pinhole import _camera_to_body, quat_matrix
+
+    a = spacecraft(layout).wheel_axes_body
+    v = np.array(w) * 10.0 ** scale
+    assert np.array_equal(a.T.dot(v), a.T @ v)
+    q = np.array([*w, 0.5]) / np.linalg.norm([*w, 0.5])
+    for boresight in ((0.0, 0.0, 1.0), (0.0, 0.6, 0.8)):
+        c = _camera_to_body(boresight)
+        assert np.array_equal(quat_matrix(q).dot(c), quat_matrix(q) @ c)

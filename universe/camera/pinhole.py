@@ -49,7 +49,8 @@ def camera_to_inertial_matrix(scene: Scene, cfg: CameraConfig) -> np.ndarray:
 
 def camera_to_inertial(q_body_to_inertial: np.ndarray, cfg: CameraConfig) -> np.ndarray:
     """3x3 matrix taking camera-frame vectors to the inertial frame, in the attitude of a unit [x, y, z, w]."""
-    return quat_matrix(q_body_to_inertial) @ _camera_to_body(tuple(cfg.boresight_body))
+    # ndarray.dot: the same product as matmul's (tested to the bit), without the generalised ufunc's set-up
+    return quat_matrix(q_body_to_inertial).dot(_camera_to_body(tuple(cfg.boresight_body)))
 
 
 def project_inertial(scene: Scene, cfg: CameraConfig, point_inertial: np.ndarray) -> tuple:
