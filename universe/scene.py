@@ -33,7 +33,8 @@ def scene_at(u: Universe, exposure_s: float, t_s: float | None = None, state: At
              oriented: bool = True) -> Scene:
     """The camera scene at true time ``t_s`` in attitude state ``state`` (default: the universe's current ones);
     ``oriented=False`` leaves the bodies' spin out (the identity orientation), for uses that see only their centres
-    and sizes (the centroid-level measurement): the two rotations cost more than the rest of the scene."""
+    and sizes: the two rotations cost more than the rest of the scene (the centroid-level measurement,
+    ``measurement.measure_at``, computes what it reads of a scene without making one)."""
     g = u.geometry
     t = u.t_s if t_s is None else t_s
     state = u.state if state is None else state

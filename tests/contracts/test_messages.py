@@ -53,8 +53,8 @@ def test_garbage_is_refused() -> None:
 def test_trusted_makes_what_validation_makes_of_valid_values() -> None:
     """``Frozen.trusted`` of values of the fields' types equals the validated model: values, fields set, field order,
     JSON; an unknown or a missing field is refused."""
-    values = dict(t_s=1.5, obt_s=2.5, q=(0.0, 0.0, 0.6, 0.8), omega_rad_s=(0.1, 0.2, 0.3), wheel_momentum_nms=(0.0,) * 4,
-                  wheel_torque_nm=(1e-3, 0.0, -1e-3, 0.0), pointing_error_rad=0.01, target_in_fov=True, range_m=5e4,
+    values = dict(t_s=1.5, obt_s=2.5, q=(0.0, 0.0, 0.6, 0.8), omega_rad_s=(0.1, 0.2, 0.3),
+                  wheel_momentum_nms=(0.0,) * 4, wheel_torque_nm=(1e-3, 0.0, -1e-3, 0.0), pointing_error_rad=0.01, target_in_fov=True, range_m=5e4,
                   theta_rad=1.2, phase_angle_deg=60.0, dimorphos_px=(511.5, 3.25))
     trusted, validated = TruthRecord.trusted(**values), TruthRecord(**values)
     assert trusted == validated and trusted.model_dump_json() == validated.model_dump_json()

@@ -244,7 +244,8 @@ def test_a_body_views_centre_is_the_projection_of_its_centre(q: list[float], bor
                       unique_by=lambda p: p[0]),
        x=st.one_of(st.floats(-1.2e3, 1.2e3), st.sampled_from([math.inf, -math.inf, math.nan])))
 def test_interp_is_numpy_s_to_the_bit(table: list[tuple[float, float]], x: float) -> None:
-    """``interp`` of one value gives ``np.interp``'s float, bit for bit, on and between the table's points and beyond."""
+    """``interp`` of one value gives ``np.interp``'s float, bit for bit, on and between the table's points and
+    beyond."""
     xp, fp = (tuple(c) for c in zip(*sorted(table), strict=True))
     for v in (x, *xp, *(0.5 * (a + b) for a, b in zip(xp, xp[1:]))):
         want = float(np.interp(v, xp, fp))
