@@ -132,6 +132,8 @@ class TrajectoryRecognizer:
         self._meas = np.empty((3, 64))
         self._n = 0
         self._solved: tuple[int, ContinuousEstimate] | None = None
+        # the best grid candidate since the last measurement or step (asked by each housekeeping packet and solve)
+        self._best: tuple[float, float, float] | None = None
         self._trajectory: tuple[object, NominalTrajectory] | None = None  # (the _solved it was built from, it)
 
     def shift_time(self, step_s: float) -> None:
@@ -141,7 +143,7 @@ class TrajectoryRecognizer:
         self._times_s = self._times_s + step_s
         self._cand_t = self._cand_t + step_s
         self._meas[0, : self._n] += step_s
-        self._solved = None
+        self._solved = self._best = None
 
     # --- measurements --------------------------------------------------------------------------------------------
 
@@ -174,6 +176,7 @@ class TrajectoryRecognizer:
             self._meas = np.concatenate([self._meas, np.empty_like(self._meas)], axis=1)
         self._meas[:, self._n] = (float(obt_s), theta, out_of_plane_rad(self.nominal, los))
         self._n += 1
+        self._best = None
 
     # --- grid ----------------------------------------------------------------------------------------------------
 
@@ -191,10 +194,12 @@ class TrajectoryRecognizer:
         mse of nan) before any measurement."""
         if not self._n:
             return self.nominal.ca_time_obt_s, self.nominal.ca_distance_km, float("nan")
-        mse = self._sum_sq / self.measurement_count
-        # the least in tie order: argmin takes the first of equal minima (every mse is finite: measurements are)
-        best = int(self._tie_order[np.argmin(mse[self._tie_order])])
-        return float(self._cand_t[best]), float(self._cand_d_m[best] / 1e3), float(mse[best])
+        if self._best is None:
+            mse = self._sum_sq / self.measurement_count
+            # the least in tie order: argmin takes the first of equal minima (every mse is finite: measurements are)
+            best = int(self._tie_order[np.argmin(mse[self._tie_order])])
+            self._best = float(self._cand_t[best]), float(self._cand_d_m[best] / 1e3), float(mse[best])
+        return self._best
 
     def best_trajectory(self) -> NominalTrajectory:
         """The nominal trajectory moved to the best candidate's C/A time and distance."""

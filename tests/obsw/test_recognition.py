@@ -498,3 +498,31 @@ def test_the_recent_scatter_is_the_noise_and_grows_with_other_blobs() -> None:
         los = Rotation.from_rotvec(normal / np.linalg.norm(normal) * 10 * SIGMA).apply(_measured_los(truth, t, rng))
         rec.add_measurement(float(t), los)
     assert rec.recent_scatter_rad(20) > 3.0 * SIGMA
+
+
+
+def test_the_best_candidate_asked_between_measurements_and_steps_is_the_one_computed_afresh() -> None:
+    """best_grid() after any measurement or step of on-board time equals that of a recognizer given the same
+    measurements and steps and never asked before: nothing kept from an earlier question outlives a change."""
+    truth = NOMINAL.with_ca(1004.0, 58.0)
+    rng = np.random.default_rng(5)
+    ops: list[tuple[str, float, np.ndarray | None]] = []
+    for k, t in enumerate(TIMES[:50]):
+        ops.append(("add", float(t), _measured_los(truth, float(t), rng)))
+        if k % 7 == 3:
+            ops.append(("shift", 2.5, None))
+    asked = TrajectoryRecognizer(NOMINAL, CFG)
+    for n, (op, value, los) in enumerate(ops):
+        before = asked.best_grid()
+        if op == "add":
+            asked.add_measurement(value, los)
+        else:
+            asked.shift_time(value)
+            assert asked.best_grid()[0] == pytest.approx(before[0] + value, abs=1e-9)  # the candidates moved
+        fresh = TrajectoryRecognizer(NOMINAL, CFG)
+        for op2, value2, los2 in ops[: n + 1]:
+            if op2 == "add":
+                fresh.add_measurement(value2, los2)
+            else:
+                fresh.shift_time(value2)
+        assert asked.best_grid() == fresh.best_grid()
