@@ -37,45 +37,53 @@ class WheelHealth:
         self.n = n_wheels
         self.max_momentum_nms = max_momentum_nms
         self.failed: set[int] = set()
-        self._start: NDArray[np.float64] | None = None
-        self._impulse = np.zeros(n_wheels)
+        # per wheel in Python floats and bools: the same arithmetic as NumPy's on three or four values, a quarter of
+        # the cost a period
+        self._start: list[float] | None = None
+        self._impulse = [0.0] * n_wheels
         self._elapsed_s = 0.0
-        self._near_limit = np.zeros(n_wheels, dtype=bool)
-        self._strikes = np.zeros(n_wheels, dtype=int)
+        self._near_limit = [False] * n_wheels
+        self._strikes = [0] * n_wheels
 
     @property
     def failed_mask(self) -> int:
         """Bit k set for wheel k found failed."""
         return sum(1 << k for k in self.failed)
 
-    def update(self, momentum_nms: NDArray[np.float64], impulse_nms: NDArray[np.float64],
+    def update(self, momentum_nms: NDArray[np.float64], impulse_nms: NDArray[np.float64] | tuple[float, ...],
                dt_s: float) -> list[WheelFailure]:
         """Take this period's measured wheel momenta and the impulse commanded to each wheel over the period that
         ended here; return the wheels newly found failed."""
-        h = np.asarray(momentum_nms, dtype=float)
+        h = np.asarray(momentum_nms, dtype=float).reshape(-1).tolist()
+        if len(h) != self.n:
+            raise ValueError(f"momentum_nms must have {self.n} values, got {len(h)}")
         if self._start is None:
-            self._start = h.copy()
+            self._start = h
             return []
-        self._impulse += np.asarray(impulse_nms, dtype=float)
+        impulse = np.asarray(impulse_nms, dtype=float).reshape(-1).tolist()
+        if len(impulse) != self.n:
+            raise ValueError(f"impulse_nms must have {self.n} values, got {len(impulse)}")
+        self._impulse = [total + new for total, new in zip(self._impulse, impulse)]
         self._elapsed_s += dt_s
-        self._near_limit |= np.abs(h) >= self.cfg.wheel_limit_fraction * self.max_momentum_nms
+        limit = self.cfg.wheel_limit_fraction * self.max_momentum_nms
+        self._near_limit = [near or abs(x) >= limit for near, x in zip(self._near_limit, h)]
         if self._elapsed_s < self.cfg.wheel_window_s - 1e-9:
             return []
-        measured = h - self._start
         out = []
         for k in range(self.n):
             if k in self.failed:
                 continue
-            commanded = float(self._impulse[k])
+            commanded = self._impulse[k]
             if self._near_limit[k] or abs(commanded) < self.cfg.wheel_min_impulse_nms:
                 continue  # nothing to judge by: keep the count of windows that were
-            if abs(measured[k] - commanded) > self.cfg.wheel_missed_fraction * abs(commanded):
+            measured = h[k] - self._start[k]
+            if abs(measured - commanded) > self.cfg.wheel_missed_fraction * abs(commanded):
                 self._strikes[k] += 1
             else:
                 self._strikes[k] = 0
             if self._strikes[k] >= self.cfg.wheel_confirmations:
                 self.failed.add(k)
-                out.append(WheelFailure(k, commanded, float(measured[k])))
-        self._start, self._impulse, self._elapsed_s = h.copy(), np.zeros(self.n), 0.0
-        self._near_limit[:] = False
+                out.append(WheelFailure(k, commanded, measured))
+        self._start, self._impulse, self._elapsed_s = h, [0.0] * self.n, 0.0
+        self._near_limit = [False] * self.n
         return out

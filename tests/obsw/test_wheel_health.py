@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from obsw.config import FdirConfig
 from obsw.wheel_health import WheelHealth
@@ -44,3 +45,13 @@ def test_a_wheel_asked_too_little_or_near_its_limit_is_not_judged() -> None:
     assert quiet == []
     _, limited = _run(np.array([1e-3, 1e-3, 1e-3]), np.array([0.0, 1.0, 1.0]), 100, h0=np.array([0.095, 0.0, 0.0]))
     assert limited == []
+
+
+def test_a_reading_or_command_of_the_wrong_number_of_wheels_is_refused_by_name() -> None:
+    """Momenta or impulses for another number of wheels raise a ValueError naming the argument, never a silent cut."""
+    health = WheelHealth(CFG, 4, max_momentum_nms=0.1)
+    with pytest.raises(ValueError, match="momentum_nms must have 4 values, got 3"):
+        health.update(np.zeros(3), np.zeros(4), DT)
+    health.update(np.zeros(4), np.zeros(4), DT)
+    with pytest.raises(ValueError, match="impulse_nms must have 4 values, got 5"):
+        health.update(np.zeros(4), np.zeros(5), DT)
