@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import replace
 from functools import lru_cache
@@ -18,6 +19,7 @@ from universe.camera import Body, render_frame
 from universe.config import BodiesConfig, CameraConfig, FlybyConfig, PlumeConfig, SpacecraftConfig, UniverseConfig
 from universe.dynamics import AttitudeState
 from universe.geometry import dimorphos_line
+from universe.measurement import body_views, centroid_measurement, measure_at
 from universe.scene import scene_at
 from universe.shapes import ShapeModel
 from universe.simulator import pointing_attitude
@@ -326,3 +328,32 @@ def test_new_torques_take_effect_after_the_actuation_delay(delay_s: float) -> No
     u.advance(StepReply(step=0, wheel_torque_nm=(tau,) * 3, actuation_delay_s=delay_s))
     rotor = u.dynamics.rotor_inertia_kgm2 * (np.asarray(u.state.omega_rad_s) + np.asarray(u.state.wheel_speed_rad_s))
     assert rotor == pytest.approx([tau * (0.1 - min(delay_s, 0.1))] * 3, abs=1e-12)
+
+
+@pytest.mark.parametrize("faults", [(), ({"kind": "frame_blank", "start_s": 140.3, "end_s": 140.6},)])
+def test_a_centroid_measurement_is_the_one_of_the_scene_at_that_time(faults: tuple[dict[str, object], ...]) -> None:
+    """``measure_at``, which computes what it reads of a scene without making one, gives what
+    ``centroid_measurement`` gives of ``scene_at``'s scene, draw for draw, and ``body_views``' true centres: the two
+    ways cannot drift apart."""
+    sc = scenario(seed=7, start_s=140.0, end_s=141.2, fidelity="centroid", faults=list(faults))
+    u = compose.universe(sc)
+    u.begin()
+    seen = dark = 0
+    for r in mixed_replies(12):
+        rng, state = copy.deepcopy(u.rng["camera"]), copy.deepcopy(u.measurement)
+        scene = scene_at(u, 0.01, oriented=False)
+        want = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, rng, state)
+        got, dim, did = measure_at(u, 0.01)  # draws from the universe's own camera stream
+        assert got == want and u.measurement == state
+        assert u.rng["camera"].bit_generator.state == rng.bit_generator.state
+        if scene.blank or scene.saturated:
+            dark += 1
+        else:
+            (did_px, *_), (dim_px, *_) = body_views(scene, u.cfg.camera)
+            assert dim == tuple(dim_px.tolist()) and did == tuple(did_px.tolist())
+            seen += got.dimorphos_col_row is not None
+        if u.ground_due():
+            u.ground_step()
+        if u.advance(r) is None:
+            break
+    assert seen >= 6 and dark == (3 if faults else 0)
