@@ -138,8 +138,7 @@ def fitted_correlation(reports: Sequence[TimeReport], obt_sigma_s: float | None 
     if len(reports) < needed:
         why = "" if obt_sigma_s is not None else " (the noise is estimated from the residuals)"
         raise CorrelationError(f"need at least {needed} time reports{why}, got {len(reports)}")
-    # generated_utc_s of each report, its subtraction written out (a property call a report costs more than it)
-    utc = np.array([r.received_utc_s - r.light_time_s for r in reports], dtype=float)
+    utc = np.array([r.generated_utc_s for r in reports], dtype=float)
     # Fit OBT - UTC = offset + drift * UTC, so the small drift is computed directly, not as slope - 1.
     lag = np.array([r.obt_s for r in reports], dtype=float) - utc
     # Centre UTC so the normal equations stay well conditioned far from the epoch.
