@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from universe.camera import display, raycast, readout
+from universe.camera import display, plume_depth, raycast, readout
 from universe.camera.bodies import add_bodies
 from universe.camera.detector import read_out
 from universe.camera.pinhole import camera_to_inertial_matrix, focal_length_px, principal_point_px, quat_matrix
@@ -17,10 +17,11 @@ from universe.config import CameraConfig, PlumeConfig
 
 
 def warm_up() -> None:
-    """Compile the camera's kernels (``universe.camera.raycast``, ``universe.camera.readout``) now, or load them from
+    """Compile the camera's kernels (``universe.camera.raycast``, ``readout``, ``plume_depth``) now, or load them from
     their cache: seconds the first time after an install, which a node pays before its first frame is due."""
     raycast.warm_up()
     readout.warm_up()
+    plume_depth.warm_up()
     display.warm_up()
 
 

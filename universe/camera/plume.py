@@ -10,6 +10,7 @@ import math
 import cv2
 import numpy as np
 
+from universe.camera import plume_depth
 from universe.camera.bodies import body_box, phase_factor
 from universe.camera.scene import Scene, unit3
 from universe.camera.scratch import work_buffer
@@ -18,6 +19,7 @@ from universe.config import CameraConfig, PlumeConfig
 
 _PLUME_GRID = 64  # coarse nodes per side: the plume is diffuse
 _PLUME_STEPS = 16  # line-of-sight samples, uniform in the angle seen from the source (exact for the 1/r^2 law)
+_HALF_FRACTIONS = (np.arange(_PLUME_STEPS // 2) + 0.5) / (_PLUME_STEPS // 2)  # samples on one side, of phi_max
 
 
 def plume_cross_section_m2(plume: PlumeConfig, t_s: float) -> float:
@@ -85,18 +87,10 @@ def plume_signal(
     omega = 2.0 * math.pi * (1.0 - math.cos(math.radians(plume.half_angle_deg)))
     if outside:
         # samples symmetric about the closest point: x = q + ell d and q . d = 0, so |x|^2 = b^2 + ell^2 for +-ell
-        half = _PLUME_STEPS // 2
-        frac = (np.arange(half) + 0.5) / half
-        ell = b_eff[None] * _tan_multiples(phi_max, frac)  # (steps/2, gh, gw), ell >= 0
-        rr = np.sqrt(b[None] * b[None] + ell * ell)
-        inv_rr = 1.0 / np.maximum(rr, 1e-9)
-        along = ell * d_axis[None]
-        weight = in_cone((q_axis[None] + along) * inv_rr) + in_cone((q_axis[None] - along) * inv_rr)
-        inside_sum = (weight * (rr >= src.radius_m)).sum(axis=0)
-        dphi = 2.0 * phi_max / _PLUME_STEPS
-        tau = area / (omega * big_r) * inside_sum * dphi / b_eff
-        # a ray whose closest point to the source is behind the camera meets none of the cloud
-        tau = np.where(t_c > 0.0, tau, 0.0)
+        # node by node, compiled (universe.camera.plume_depth); a ray whose closest point to the source is behind
+        # the camera meets none of the cloud
+        tau = plume_depth.depth_outside(b, b_eff, phi_max, q_axis, d_axis, t_c, _HALF_FRACTIONS, src.radius_m,
+                                        c_out, ramp, area / (omega * big_r), _PLUME_STEPS)
     else:
         # from inside the cloud a line of sight runs from the camera (at ell = -t_c) out to the cloud's front
         phi_lo = np.arctan(-t_c / b_eff)
@@ -124,18 +118,4 @@ def plume_signal(
     fine = cv2.resize((coarse * scene.exposure_s).astype(np.float32), (w, h),
                       dst=frame if whole else work_buffer("plume", (h, w)), interpolation=cv2.INTER_LINEAR)
     return (r0 + ra, r0 + rb, c0 + ca, c0 + cb), None if whole else fine[ra:rb, ca:cb]
-
-
-def _tan_multiples(angle: np.ndarray, frac: np.ndarray) -> np.ndarray:
-    """``tan(frac[j] * angle)`` (len(frac), *angle.shape) for equally spaced ``frac``, by rotating (cos, sin) from
-    the first multiple in equal steps: four trigonometric calls per node instead of one per sample."""
-    step = (frac[1] - frac[0]) * angle if len(frac) > 1 else np.zeros_like(angle)
-    c0, s0 = np.cos(frac[0] * angle), np.sin(frac[0] * angle)
-    cs, sn = np.cos(step), np.sin(step)
-    out = np.empty((len(frac),) + angle.shape)
-    c, s_ = c0, s0
-    for j in range(len(frac)):
-        out[j] = s_ / c
-        c, s_ = c * cs - s_ * sn, s_ * cs + c * sn
-    return out
 

@@ -9,7 +9,6 @@ import pytest
 
 from tests.universe.camera.common import C_1024, F_1024, SPHERE, scene
 from universe.camera import Body, plume_cross_section_m2, render_frame, scene_electrons
-from universe.camera.plume import _tan_multiples
 from universe.config import CameraConfig, PlumeConfig
 
 
@@ -37,13 +36,6 @@ def test_plume_appears_after_impact_along_its_axis() -> None:
     assert np.median(rows) > C_1024 + 5  # the axis is inertial +Y, image rows
     reach_px = F_1024 * 50.0 * 20.0 / 55_000.0
     assert rows.max() < C_1024 + reach_px + 5
-
-
-def test_tan_multiples_match_tan() -> None:
-    """The rotation recurrence gives tan(frac_j * angle) for angles up to 89.9 deg."""
-    angle = np.linspace(0.0, math.radians(89.9), 500)
-    frac = (np.arange(8) + 0.5) / 8
-    assert np.allclose(_tan_multiples(angle, frac), np.tan(frac[:, None] * angle[None]), rtol=1e-9, atol=1e-12)
 
 
 def test_from_inside_the_cloud_a_line_of_sight_counts_only_what_lies_ahead() -> None:
