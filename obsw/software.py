@@ -357,9 +357,11 @@ class FlightSoftware:
         torque = tuple(self._torque.tolist())
         self._applied = (self._applied[1], torque, self._actuation_delay_s)
         adjust, self._clock_adjust_s = self._clock_adjust_s, None
-        return StepReply(step=req.step, wheel_torque_nm=torque, clock_adjust_s=adjust,
-                         frame_request=self._frame_request_out, downlink=tuple(self._tm),
-                         actuation_delay_s=self._actuation_delay_s)
+        # trusted, not validated: the software's own values, each of its field's type (the step's int, torques checked
+        # finite as Python floats, a validated frame request, encoded packets, a delay clamped to the period)
+        return StepReply.trusted(step=req.step, wheel_torque_nm=torque, clock_adjust_s=adjust,
+                                 frame_request=self._frame_request_out, downlink=tuple(self._tm),
+                                 actuation_delay_s=self._actuation_delay_s)
 
     # -- the executive's tasks -----------------------------------------------------------------------------
     def _executive(self) -> Executive:
