@@ -32,7 +32,7 @@ def _types(m: object) -> object:
 
 
 def test_the_lock_step_messages_are_what_validation_makes_of_them() -> None:
-    """The universe's step requests and the flight software's replies, made without validation, equal what
+    """The flight software's replies, made without validation, and the universe's step requests equal what
     validating their contents gives, value for value and type for type (no list, array or NumPy scalar), at every
     step of a run with frames, measurements, uplinked commands and a processor overload."""
     sc, tl = load_run_inputs(ROOT / "configs" / "scenarios" / "faults" / "cpu-overload.yaml")
