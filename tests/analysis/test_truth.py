@@ -49,6 +49,26 @@ def test_arrays_hold_the_records_with_nan_for_none() -> None:
     assert math.isnan(truth.range_didymos_m[0])
 
 
+@settings(max_examples=40, deadline=None)
+@given(data=st.data(), wheels=st.integers(1, 4))
+def test_each_row_is_its_record(data: st.DataObject, wheels: int) -> None:
+    """Row i of every array is record i's field, as a plain per-record reading gives it: NaN where a field is None,
+    -1 for no frame, the shapes (N, width) even for no record."""
+    recs = data.draw(st.lists(records(wheels), min_size=0, max_size=6))
+    truth = Truth.from_records(recs)
+    widths = {"omega_rad_s": 3, "los_dimorphos_inertial": 3, "dimorphos_px": 2, "didymos_px": 2,
+              "wheel_momentum_nms": wheels if recs else 0, "wheel_torque_nm": wheels if recs else 0}
+    for name, width in widths.items():
+        want = np.array([[math.nan] * width if getattr(r, name) is None else list(getattr(r, name)) for r in recs],
+                        dtype=float).reshape(len(recs), width)
+        assert np.array_equal(getattr(truth, name), want, equal_nan=True), name
+    for name in ("t_s", "obt_s", "pointing_error_rad", "theta_rad", "range_m", "range_didymos_m"):
+        want = np.array([math.nan if getattr(r, name) is None else getattr(r, name) for r in recs], dtype=float)
+        assert np.array_equal(getattr(truth, name), want, equal_nan=True), name
+    assert truth.target_in_fov.tolist() == [r.target_in_fov for r in recs]
+    assert truth.frame_id.tolist() == [-1 if r.frame_id is None else r.frame_id for r in recs]
+
+
 def test_cut_and_bad_rows_are_skipped_and_counted(tmp_path: Path) -> None:
     """A row cut short and a row with a bad cell are skipped; the count and the first reason are kept."""
     path = tmp_path / "truth.csv"
