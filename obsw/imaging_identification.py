@@ -339,6 +339,16 @@ def _didymos_resolved(exp: Expected, regions: Regions | None, cfg: ImagingConfig
     return _must_be_resolved(exp.didymos_radius / exp.radius_factor_max, regions, cfg)
 
 
+def _dimorphos_resolved(exp: Expected, regions: Regions | None, cfg: ImagingConfig) -> bool:
+    """Whether Dimorphos must be resolved at the smallest apparent size the prediction allows."""
+    return _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg)
+
+
+def _dimorphos_resolved_diameter_px(exp: Expected, regions: Regions | None, cfg: ImagingConfig) -> float | None:
+    """Dimorphos's largest apparent diameter when it must be resolved (``_dimorphos_resolved``), None when not."""
+    return 2.0 * exp.dimorphos_radius * exp.radius_factor_max if _dimorphos_resolved(exp, regions, cfg) else None
+
+
 def psf_reach_px(cfg: ImagingConfig) -> float:
     """How far from a point source its light stays above the threshold at most, px: a Gaussian of sigma s
     (``point_source_sigma_max_px``) with a peak of at most 2^16 times the threshold's level stays above it within
@@ -363,7 +373,7 @@ def surface_pixels(regions: Regions, blob: Blob, n_pixels: int) -> int:
 
 
 def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place: _Place | None = None,
-            cfg: ImagingConfig | None = None) -> Blob:
+            cfg: ImagingConfig | None = None, resolved_diameter_px: float | None = None) -> Blob:
     """The body of ``n_pixels`` expected pixels in a blob that holds more: of the 8-connected parts of its brightest
     ``n_pixels``, or of its surface when that is fewer (``surface_pixels``, the level set by its best-lit quarter of
     ``n_pixels``: a body smaller than expected still sets it; dust fainter than half the surface, brighter near the
@@ -377,7 +387,12 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     of a higher level (``_lit_part_above``). When none is there (the brightest pixels are a star or the plume's core
     elsewhere in the region, and set the surface's level), the body is the region's part within the place's radius,
     trimmed the same way. The rules by where the lit part is expected need ``cfg`` (the body's smallest area, the
-    point-spread function, the limb fit's phases); without it they are not applied."""
+    point-spread function, the limb fit's phases); without it they are not applied. When the body must be resolved
+    (``_must_be_resolved`` at its smallest predicted size; ``resolved_diameter_px`` its largest diameter), a point
+    source among the competing parts farther than that diameter from every competing part that is not one does not
+    compete: a star in the dust holding a quarter of a small body's expected area is brighter by mean than the
+    body's own part, while a compact piece within the body's reach of another is the same body's (a crescent's
+    best-lit part cut apart from the rest)."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
@@ -388,7 +403,7 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
             if inside:
                 # the parts' pixels all lie in the place's disc, so do their brightest parts' centroids: one level
                 return trimmed(regions, max(inside, key=lambda b: (b.area_px, -b.label)), n_pixels,
-                               regions.free_label(first_label), place, cfg)
+                               regions.free_label(first_label), place, cfg, resolved_diameter_px)
         parts = there or parts
     lit = [] if place is None or cfg is None else _lit_parts(regions, parts, place, cfg)
     if place is not None and cfg is not None and not lit \
@@ -404,6 +419,10 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     # the thin crescent itself
     chosen_by_place = {id(p) for p in lit}
     parts = [p for p in parts if 4 * p.area_px >= n_pixels or id(p) in chosen_by_place] or parts
+    if resolved_diameter_px is not None and cfg is not None and len(parts) > 1:
+        extended = [p for p in parts if not _point_source(regions, p, cfg)]
+        parts = [p for p in parts if any(p is e or _distance(p.region_centroid_col_row, e.region_centroid_col_row)
+                                         <= resolved_diameter_px for e in extended)] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
 
 
@@ -994,7 +1013,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     # when it must be resolved, never a point source (a star, however bright: Dimorphos hidden or merged with Didymos)
     n = round(exp.dimorphos_area)
     lights = apertures_dn8(regions, in_gate, n)
-    if _must_be_resolved(exp.dimorphos_radius / exp.radius_factor_max, regions, cfg):
+    if _dimorphos_resolved(exp, regions, cfg):
         ranked = sorted(range(len(in_gate)), reverse=True,
                         key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))
         return next((in_gate[i] for i in ranked if not _point_source(regions, in_gate[i], cfg)), None)
@@ -1231,7 +1250,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             if not pieces:
                 continue
             piece = trimmed(regions, max(pieces, key=lambda b: (b.area_px, -b.label)), round(exp.dimorphos_area),
-                            next_label, place, cfg)
+                            next_label, place, cfg, _dimorphos_resolved_diameter_px(exp, regions, cfg))
             next_label = regions.free_label(next_label)
             if _distance(piece.region_centroid_col_row, centre) > exp.didymos_radius:
                 dimorphos = _choose_dimorphos([piece], didymos, exp, place, None, None, cfg, regions, probability)
@@ -1407,7 +1426,8 @@ def _dimorphos_surface(regions: Regions | None, dimorphos: Blob, exp: Expected, 
                 dimorphos.trimmed_from
                 or exp.dimorphos_radius / exp.radius_factor_max >= 2.0 * reach
                 or dimorphos.area_px > math.pi * (exp.dimorphos_radius + reach + 1.0) ** 2)):
-        return trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place, cfg)
+        return trimmed(regions, dimorphos, round(exp.dimorphos_area), next_label, place, cfg,
+                       _dimorphos_resolved_diameter_px(exp, regions, cfg))
     return dimorphos
 
 

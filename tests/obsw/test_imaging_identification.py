@@ -85,7 +85,7 @@ def _assert_found(t: Trial, index: int) -> None:
     assert body.error_px is not None and body.error_px <= PAPER_LIMIT_PX
 
 
-@pytest.mark.parametrize(("seed", "k"), [(1, 108), (1, 233), (1, 285), (1, 309)])
+@pytest.mark.parametrize(("seed", "k"), [(1, 108), (1, 233), (1, 285), (1, 309), (99, 291)])
 def test_dimorphos_in_the_plume_is_not_a_star_in_the_dust(seed: int, k: int) -> None:
     """Dimorphos merged with a plume holding stars brighter than its surface: the part cut out for it is the body,
     not a star of a few pixels in the dust (bench frames that reported a star)."""
@@ -288,6 +288,39 @@ def test_a_star_in_a_dense_fan_does_not_take_dimorphos_place(seed: int) -> None:
     scene = replace(scene, plume=plume, stars=(star,))
     for sigma in (3.0, 30.0):
         _assert_found(run_trial(scene, seed, prediction_for(scene, rng, sigma)), 1)
+
+
+@pytest.mark.parametrize("star_radii", [6.0, 8.0])
+@pytest.mark.parametrize("seed", range(6))
+def test_a_star_in_the_fan_of_a_small_resolved_crescent_is_not_dimorphos(seed: int, star_radii: float) -> None:
+    """A resolved crescent Dimorphos (98 deg phase, about 6 binned px across) at the root of a fan of dust half as
+    bright as its surface, a 1400 DN star in the fan 6 or 8 of its radii out (beyond its largest diameter), its
+    place known to 90 px: of the parts of the region cut to Dimorphos's expected area, the star's, brighter by mean
+    and a quarter of that area, is not taken for a body that must be resolved (held-out bench frame 99/291 reported
+    the star 38 px off)."""
+    rng = np.random.default_rng([66, seed])
+    scene = random_scene(rng, didymos_diameter_px=60.0, plume=True, phase_deg=98.0, n_hot=0, n_cosmic=0,
+                         pointing_error_px=0.0, faint=False)
+    scene = _apart(scene, rng)
+    did, dim = scene.bodies
+    axis = math.degrees(math.atan2(dim.row - did.row, dim.col - did.col))
+    plume = replace(scene.plume, axis_deg=axis, half_angle_deg=25.0, length_px=30.0 * dim.mean_radius_px,
+                    brightness_dn=0.5 * dim.radiance_dn, exponent=1.2)
+    out = star_radii * dim.mean_radius_px
+    star = (dim.col + out * math.cos(math.radians(axis)), dim.row + out * math.sin(math.radians(axis)), 1400.0)
+    scene = replace(scene, plume=plume, stars=(star,))
+    _assert_found(run_trial(scene, seed, prediction_for(scene, rng, 30.0)), 1)
+
+
+@pytest.mark.parametrize(("seed", "k"), [(17, 213), (45, 187)])
+def test_a_compact_piece_of_a_resolved_dimorphos_is_not_taken_for_a_star(seed: int, k: int) -> None:
+    """A resolved Dimorphos (5 binned px) cut into two parts 4 px apart, the brighter compact enough to pass for a
+    point source: within the body's largest diameter of the other part it is the same body's, and the brighter
+    part is reported, within 1.5 px of the centre (bench frames that a rule dropping every point source moved
+    3-4 px)."""
+    t = _bench_trial(seed, k)
+    _assert_found(t, 1)
+    assert t.dimorphos.error_px is not None and t.dimorphos.error_px <= 1.5
 
 
 @pytest.mark.parametrize(("seed", "k"), [(1, 99), (1, 134), (1, 196)])
