@@ -4,10 +4,11 @@ Theory of operation (``universe.camera.plume``): the cloud's density falls as 1/
 along a line of sight whose closest point to the source is at distance ``b`` the depth is sampled uniformly in the
 angle ``phi`` seen from the source, symmetrically about that closest point (``x = q + ell d`` with ``q . d = 0``, so
 ``|x|^2 = b^2 + ell^2`` at ``+-ell``), ``ell = b_eff tan(phi)``. Each node's tangents come from rotating (cos, sin)
-of the first sample's angle by the step (four trigonometric calls per node, not one per sample), as
-``plume._tan_multiples`` did over whole arrays. One pass per node replaces some twenty whole-array NumPy operations
-on (steps, rows, cols) arrays, with the same operations in the same order on each element: the depth is the same
-to the last bit (the arc tangents, whose NumPy and C library values differ in the last bit, stay in NumPy).
+of the first sample's angle by the step (four trigonometric calls per node, not one per sample). One pass per node
+replaces some twenty whole-array NumPy operations on (steps, rows, cols) arrays, with the same operations in the
+same order on each element: the depth is that array formula's to the last bit (``tests/universe/camera/
+test_plume_depth.py`` keeps it as the reference; the arc tangents, whose NumPy and C library values differ in the
+last bit, stay in NumPy).
 """
 
 from __future__ import annotations
