@@ -389,10 +389,10 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     trimmed the same way. The rules by where the lit part is expected need ``cfg`` (the body's smallest area, the
     point-spread function, the limb fit's phases); without it they are not applied. When the body must be resolved
     (``_must_be_resolved`` at its smallest predicted size; ``resolved_diameter_px`` its largest diameter), a point
-    source among the competing parts farther than that diameter from every competing part that is not one does not
-    compete: a star in the dust holding a quarter of a small body's expected area is brighter by mean than the
-    body's own part, while a compact piece within the body's reach of another is the same body's (a crescent's
-    best-lit part cut apart from the rest)."""
+    source among the competing parts farther than twice that diameter from every competing part that is not one
+    does not compete: a star in the dust holding a quarter of a small body's expected area is brighter by mean than
+    the body's own part, while a compact part near another may be the body's own, cut apart from the rest of it
+    (within one diameter) or from the dust beside it (the extended part being dust, within another)."""
     surface = surface_pixels(regions, blob, max(1, round(n_pixels / 4)))
     parts = regions.parts(blob, min(surface, n_pixels), first_label)
     if place is not None:
@@ -422,7 +422,7 @@ def trimmed(regions: Regions, blob: Blob, n_pixels: int, first_label: int, place
     if resolved_diameter_px is not None and cfg is not None and len(parts) > 1:
         extended = [p for p in parts if not _point_source(regions, p, cfg)]
         parts = [p for p in parts if any(p is e or _distance(p.region_centroid_col_row, e.region_centroid_col_row)
-                                         <= resolved_diameter_px for e in extended)] or parts
+                                         <= 2.0 * resolved_diameter_px for e in extended)] or parts
     return max(parts, key=lambda b: (b.mean_dn8, b.area_px, -b.label))
 
 
