@@ -33,8 +33,8 @@ MAX_COARSE = (1 << (8 * COARSE_OCTETS)) - 1
 MAX_OBT_S = MAX_COARSE + (FINE_TICKS_PER_S - 1) * TICK_S
 
 _AGENCY_EPOCH_ID = 0b010
-_T_FIELD = struct.Struct(">IH")  # the mission's coarse and fine octets
-_STAMP = struct.Struct(">BIH")  # its P-field and T-field
+# the mission's stamp (P-field, coarse and fine octets) as one struct, its formats from the octet counts above
+_STAMP = struct.Struct(">B" + {1: "B", 2: "H", 4: "I"}[COARSE_OCTETS] + {1: "B", 2: "H"}[FINE_OCTETS])
 
 
 class CucError(FlybyError, ValueError):
@@ -69,17 +69,19 @@ def obt_from_ticks(coarse: int, fine: int) -> float:
 def cuc_from_ticks(coarse: int, fine: int) -> bytes:
     """Return the 7-octet CUC (P-field + T-field) of exact integer (coarse, fine) ticks."""
     _check_ticks(coarse, fine)
-    return bytes((P_FIELD,)) + coarse.to_bytes(COARSE_OCTETS, "big") + fine.to_bytes(FINE_OCTETS, "big")
+    return _STAMP.pack(P_FIELD, coarse, fine)
 
 
 def cuc_encode(obt_s: float) -> bytes:
     """Return the 7-octet CUC of the tick nearest to ``obt_s`` seconds of OBT."""
-    # cuc_from_ticks's octets in one struct: ticks_from_obt's ticks are in range by construction
-    return _STAMP.pack(P_FIELD, *ticks_from_obt(obt_s))
+    return cuc_from_ticks(*ticks_from_obt(obt_s))
 
 
 def ticks_from_cuc(data: bytes | bytearray | memoryview) -> tuple[int, int]:
     """Return (coarse seconds, fine ticks of 2^-16 s) of a CUC stamp; 0 or 1 fine octets are rescaled exactly."""
+    if len(data) == CUC_LEN and data[0] == P_FIELD:  # the mission's own stamp (every one on board): one struct
+        _, coarse, fine = _STAMP.unpack_from(data)
+        return coarse, fine
     raw = bytes(data)
     if not raw:
         raise CucFormatError("CUC stamp is empty (no P-field)")
@@ -107,10 +109,7 @@ def ticks_from_cuc(data: bytes | bytearray | memoryview) -> tuple[int, int]:
 
 def cuc_decode(data: bytes | bytearray | memoryview) -> float:
     """Return the OBT in seconds of a CUC stamp (P-field + T-field)."""
-    if len(data) == CUC_LEN and data[0] == P_FIELD:  # the mission's own stamp (every one on board): one struct
-        coarse, fine = _T_FIELD.unpack_from(data, 1)
-    else:
-        coarse, fine = ticks_from_cuc(data)
+    coarse, fine = ticks_from_cuc(data)
     return coarse + fine * TICK_S
 
 
