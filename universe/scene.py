@@ -29,20 +29,16 @@ def body_shapes(seed: int) -> tuple[ShapeModel, ShapeModel]:
             ShapeModel(seed=2 * seed + 2, axis_ratios=(1.12, 1.0, 0.88)))
 
 
-def scene_at(u: Universe, exposure_s: float, t_s: float | None = None, state: AttitudeState | None = None,
-             oriented: bool = True) -> Scene:
-    """The camera scene at true time ``t_s`` in attitude state ``state`` (default: the universe's current ones);
-    ``oriented=False`` leaves the bodies' spin out (the identity orientation), for uses that see only their centres
-    and sizes: the two rotations cost more than the rest of the scene (the centroid-level measurement,
-    ``measurement.measure_at``, computes what it reads of a scene without making one)."""
+def scene_at(u: Universe, exposure_s: float, t_s: float | None = None, state: AttitudeState | None = None) -> Scene:
+    """The camera scene at true time ``t_s`` in attitude state ``state`` (default: the universe's current ones). The
+    centroid-level measurement (``measurement.measure_at``) computes what it reads of a scene without making one."""
     g = u.geometry
     t = u.t_s if t_s is None else t_s
     state = u.state if state is None else state
     bodies_cfg = u.cfg.bodies
     n = g.orbit_normal
-    identity = np.array([0.0, 0.0, 0.0, 1.0])
-    spin = Rotation.from_rotvec(n * (2.0 * math.pi * t / DIDYMOS_ROTATION_PERIOD_S)).as_quat() if oriented else identity
-    lock = Rotation.from_rotvec(n * float(g.mean_motion_rad_s * t)).as_quat() if oriented else identity
+    spin = Rotation.from_rotvec(n * (2.0 * math.pi * t / DIDYMOS_ROTATION_PERIOD_S)).as_quat()
+    lock = Rotation.from_rotvec(n * float(g.mean_motion_rad_s * t)).as_quat()
     seed = u.seed
     didymos = Body(centre_inertial_m=g.didymos_position_m(t), radius_m=bodies_cfg.didymos_diameter_m / 2.0,
                    shape=u.shapes[0], q_body_to_inertial=spin)

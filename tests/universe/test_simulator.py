@@ -341,7 +341,7 @@ def test_a_centroid_measurement_is_the_one_of_the_scene_at_that_time(faults: tup
     seen = dark = 0
     for r in mixed_replies(12):
         rng, state = copy.deepcopy(u.rng["camera"]), copy.deepcopy(u.measurement)
-        scene = scene_at(u, 0.01, oriented=False)
+        scene = scene_at(u, 0.01)  # the bodies' spin is in the scene; the measurement reads only their centres
         want = centroid_measurement(scene, u.cfg.camera, u.cfg.centroid_model, rng, state)
         got, dim, did = measure_at(u, 0.01)  # draws from the universe's own camera stream
         assert got == want and u.measurement == state
