@@ -1032,7 +1032,8 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     """Replace Didymos's blob by the parts of its brightest pixels of both bodies' expected area and choose Didymos
     again: (candidates, Didymos candidates, Didymos, next free label); among its parts only when the region was
     ``placed`` (chosen among point-like candidates by its distance from Dimorphos's place: a star elsewhere, brighter
-    than its parts, was less likely)."""
+    than its parts, was less likely), or when the choice falls on a point source elsewhere while Didymos must be
+    resolved and the region was not one (the region was taken over it for its shape)."""
     parts = [p for p in regions.parts(didymos, round(exp.didymos_area + exp.dimorphos_area), next_label)
              if p.area_px >= cfg.min_body_area_px and p.elongation <= cfg.max_body_elongation]
     if not parts or parts == [didymos]:
@@ -1041,8 +1042,13 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     likely = [c for c in likely if c is not didymos] + parts
     # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one;
     # the place chose the region among stars, not between its parts (Didymos, Dimorphos and ejecta, all there)
-    return cands, likely, _choose_didymos(parts if placed else likely, cands, exp, prev_did, prev_dim, cfg, regions,
-                                          None)[0], regions.free_label(next_label)
+    chosen = _choose_didymos(parts if placed else likely, cands, exp, prev_did, prev_dim, cfg, regions, None)[0]
+    if chosen not in parts and _didymos_resolved(exp, regions, cfg) and _point_source(regions, chosen, cfg) \
+            and not _point_source(regions, didymos, cfg):
+        # a point source the region was taken over for its shape (Didymos must be resolved) stays passed over when
+        # the region's parts are point-like: a thin crescent's lit part, cut from the dust around it
+        chosen = _choose_didymos(parts, cands, exp, prev_did, prev_dim, cfg, regions, None)[0]
+    return cands, likely, chosen, regions.free_label(next_label)
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
@@ -1257,10 +1263,11 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
                 break
     if dimorphos is None and place is not None and exp is not None and regions is not None \
             and regions.linear8 is not None \
-            and (didymos.trimmed_from or didymos.area_px > exp.didymos_area + exp.dimorphos_area and resolved):
+            and (didymos.trimmed_from or resolved):
         # Dimorphos merged with Didymos's region by the plume or the blur, below every level the cuts above tried:
-        # a region cut for Didymos, or one left whole with room for both bodies when Didymos is resolved (an
-        # unresolved one's blur and noise can part into peaks of their own)
+        # a region cut for Didymos, or one left whole when Didymos is resolved (an unresolved one's blur and noise
+        # can part into peaks of their own), whatever its area: a Didymos smaller than predicted (its apparent size
+        # is known to radius_factor_max) leaves no room for Dimorphos in the predicted areas, yet holds it
         root = next((b for b in blobs if b.label == (didymos.trimmed_from or didymos.label)), didymos)
         dimorphos, source, next_label = _deblended_dimorphos(root, didymos, cands, exp, place, cfg, regions,
                                                              probability, next_label)
