@@ -253,11 +253,23 @@ class Regions:
         owner = np.full(sel.size, -1, dtype=np.int64)  # the branch holding each pixel (-1: the blob's trunk)
         branches: list[tuple[np.ndarray, int, int]] = []  # each branch's positions in ``sel``, level, pixels there
         parted: set[int] = set()  # branches that split into branches of their own
+        # the blob's values on its bounding box (-1 off it) and each box pixel's index in ``sel``, made once: every
+        # level is labelled on this box (raster order, and with it the parts' numbering and pixel order, is that of
+        # any box holding them)
+        rows, cols = np.divmod(self.components.pixel_index[sel], self.width)
+        top, left = int(rows.min()), int(cols.min())
+        h, w = int(rows.max()) - top + 1, int(cols.max()) - left + 1
+        flat = (rows - top) * w + (cols - left)
+        box = np.full(h * w, -1, dtype=np.int16)
+        box[flat] = vals
+        box = box.reshape(h, w)
+        index_in_sel = np.full(h * w, -1, dtype=np.int64)
+        index_in_sel[flat] = np.arange(sel.size)
         for level in np.unique(np.linspace(self.threshold_dn8 + 1, peak, levels).round().astype(np.int64)).tolist():
-            at = np.flatnonzero(vals >= level)
-            sub, members = self._connected(sel[at], at)[:2]  # members: each part's pixels as indices into ``sel``
+            sub = connected_components(box >= level)
             if sub.area_px.size < 2:
                 continue
+            members = index_in_sel[sub.pixel_index]  # each part's pixels as indices into ``sel``
             flux = np.bincount(sub.pixel_component, weights=light[members], minlength=sub.area_px.size)
             by_parent: dict[int, list[np.ndarray]] = {}
             for j in np.flatnonzero(flux >= min_flux_fraction * total).tolist():
@@ -269,7 +281,7 @@ class Regions:
                 parted.add(parent)
                 for mine in children:
                     owner[mine] = len(branches)
-                    branches.append((mine, level, int(at.size)))
+                    branches.append((mine, level, int(members.size)))
         leaves = [b for i, b in enumerate(branches) if i not in parted]
         if not leaves:
             return [blob]
@@ -1356,7 +1368,9 @@ def _didymos_object(regions: Regions, objects: list[Blob], didymos: Blob, n_pixe
     """The deblended object holding the most of Didymos's surface, its brightest ``n_pixels`` (its expected area:
     the dust and a Dimorphos beside it are fainter or smaller); None if none holds any."""
     mine, _ = regions.brightest(didymos, n_pixels)
-    shared = [np.intersect1d(regions.pixels_of(o), mine, assume_unique=True).size for o in objects]
+    marked = np.zeros(regions.components.pixel_index.size, dtype=np.bool_)
+    marked[mine] = True
+    shared = [int(np.count_nonzero(marked[regions.pixels_of(o)])) for o in objects]
     return objects[int(np.argmax(shared))] if shared and max(shared) > 0 else None
 
 
