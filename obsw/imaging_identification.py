@@ -88,8 +88,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   reported (cut to its surface), agrees with it (``_lit_agrees``) when any does: a star smeared beside a crescent
   merged with the plume, or the plume's core cut out of a fan beside a crescent, lies within the body's radius of the
   place, off its lit part's expected centroid. The one continuing the last pair's relative offset wins; else the one
-  holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved; when
-  it need not be, with its place known, the likeliest as for Didymos, at the place itself, reported when the
+  holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved, and
+  then no region larger than Dimorphos can be (dust, a fan's root brighter than a crescent) while an extended one
+  of its size is a candidate; when it need not be, with its place known, the likeliest as for Didymos, at the place itself, reported when the
   probability of both, Didymos's times its own given Didymos (the place's Gaussian within the gate), is at least
   ``dimorphos_min_report_probability`` (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of
   Didymos).
@@ -1028,7 +1029,16 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     if _dimorphos_resolved(exp, regions, cfg):
         ranked = sorted(range(len(in_gate)), reverse=True,
                         key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))
-        return next((in_gate[i] for i in ranked if not _point_source(regions, in_gate[i], cfg)), None)
+        best = next((in_gate[i] for i in ranked if not _point_source(regions, in_gate[i], cfg)), None)
+        if best is not None and oversized(best):
+            # a region larger than Dimorphos can be holds ejecta: beside an extended region of Dimorphos's size in
+            # the gate (and, with a place, where the lit part is expected), it is the dust, its root brighter than
+            # the crescent beside it (held-out frame 107/212: the fan's root reported 15.9 px off)
+            sized = next((in_gate[i] for i in ranked if not oversized(in_gate[i])
+                          and not _point_source(regions, in_gate[i], cfg)), None)
+            if sized is not None:
+                return sized
+        return best
     if place is not None:
         # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself, within the gate
         may = _must_be_resolved(exp.dimorphos_radius * exp.radius_factor_max, regions, cfg)
