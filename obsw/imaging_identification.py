@@ -90,10 +90,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   place, off its lit part's expected centroid. The one continuing the last pair's relative offset wins; else the one
   holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved, and
   then no region larger than Dimorphos can be (dust, a fan's root brighter than a crescent) while an extended one
-  of its size is a candidate; when it need not be, with its place known, the likeliest as for Didymos, at the place itself, reported when the
-  probability of both, Didymos's times its own given Didymos (the place's Gaussian within the gate), is at least
-  ``dimorphos_min_report_probability`` (without a prediction: the largest up to ``dimorphos_max_area_fraction`` of
-  Didymos).
+  of its size is a candidate; when it need not be, with its place known, the likeliest as for Didymos, at the
+  place itself, reported when the probability of both, Didymos's times its own given Didymos (the place's Gaussian
+  within the gate), is at least ``dimorphos_min_report_probability`` (without a prediction: the largest up to
+  ``dimorphos_max_area_fraction`` of Didymos).
 - **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
   its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
   the radius of a disc whose lit part has the region's area).
