@@ -347,7 +347,8 @@ def test_dimorphos_at_high_phase_is_not_the_root_of_its_fan(seed: int, k: int) -
     """Dimorphos 22-29 px across at 101-118 deg of phase, a fan of ejecta rising from it, its place known to 90 px
     (too loosely for the whole limb's fit): it is reported within the paper's 15 px of its centre, where the cut of
     the fan's root beside the thin crescent lay 20-25 px off (bench frames; seeds 35 and 37 no change was tuned
-    on before this one)."""
+    on before this one). The lit limb's circle moved that cut onto the body; since the crescent, a region of
+    Dimorphos's size, is chosen before the fan (a region larger than Dimorphos can be), it is found without it too."""
     rng = np.random.default_rng([seed, k])
     scene = random_scene(rng)
     prediction = prediction_for(scene, rng, 3.0 if rng.random() < 0.5 else 30.0)
@@ -359,7 +360,7 @@ def test_dimorphos_at_high_phase_is_not_the_root_of_its_fan(seed: int, k: int) -
         return math.dist(det.dimorphos.centroid_col_row, frame.truth[1].centre_512)
 
     assert error_px(CFG) <= PAPER_LIMIT_PX
-    assert error_px(CFG.model_copy(update={"lit_limb_min_disagreement_radii": 1e9})) > PAPER_LIMIT_PX  # the case
+    assert error_px(CFG.model_copy(update={"lit_limb_min_disagreement_radii": 1e9})) <= PAPER_LIMIT_PX
 
 
 @pytest.mark.parametrize(("plume_brightness", "dimorphos_radiance"), [(1.0, 1.0), (0.6, 1.0), (1.5, 1.0),
