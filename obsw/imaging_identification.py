@@ -257,10 +257,7 @@ class Regions:
         # the blob's values on its bounding box (-1 off it) and each box pixel's index in ``sel``, made once: every
         # level is labelled on this box (raster order, and with it the parts' numbering and pixel order, is that of
         # any box holding them)
-        rows, cols = np.divmod(self.components.pixel_index[sel], self.width)
-        top, left = int(rows.min()), int(cols.min())
-        h, w = int(rows.max()) - top + 1, int(cols.max()) - left + 1
-        flat = (rows - top) * w + (cols - left)
+        flat, _, _, h, w = self._box(sel)
         box = np.full(h * w, -1, dtype=np.int16)
         box[flat] = vals
         box = box.reshape(h, w)
@@ -302,15 +299,21 @@ class Regions:
         """The 8-connected parts of the pixels ``sel`` (positions in ``components.pixel_index`` order), labelled on
         their bounding box: (the parts, each of their pixels' tag from ``tags``, aligned with ``sel``, the box's left
         column, top row and width)."""
+        flat, left, top, h, w = self._box(sel)
+        crop = np.zeros(h * w, dtype=bool)
+        crop[flat] = True
+        tagged = np.full(h * w, -1, dtype=np.int64)
+        tagged[flat] = tags
+        sub = connected_components(crop.reshape(h, w))
+        return sub, tagged[sub.pixel_index], left, top, w
+
+    def _box(self, sel: np.ndarray) -> tuple[np.ndarray, int, int, int, int]:
+        """The bounding box of the pixels ``sel`` (positions in ``components.pixel_index`` order): each pixel's flat
+        index in the box, the box's left column, top row, height and width."""
         rows, cols = np.divmod(self.components.pixel_index[sel], self.width)
         left, top = int(cols.min()), int(rows.min())
         h, w = int(rows.max()) - top + 1, int(cols.max()) - left + 1
-        crop = np.zeros((h, w), dtype=bool)
-        crop[rows - top, cols - left] = True
-        tagged = np.full((h, w), -1, dtype=np.int64)
-        tagged[rows - top, cols - left] = tags
-        sub = connected_components(crop)
-        return sub, tagged.reshape(-1)[sub.pixel_index], left, top, w
+        return (rows - top) * w + (cols - left), left, top, h, w
 
     def _cut(self, blob: Blob, sel: np.ndarray, threshold_dn8: int, first_label: int,
              cut: int | tuple[float, float, float] | Without) -> list[Blob]:
@@ -1029,15 +1032,13 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
     if _dimorphos_resolved(exp, regions, cfg):
         ranked = sorted(range(len(in_gate)), reverse=True,
                         key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))
-        best = next((in_gate[i] for i in ranked if not _point_source(regions, in_gate[i], cfg)), None)
+        extended = (b for b in (in_gate[i] for i in ranked) if not _point_source(regions, b, cfg))
+        best = next(extended, None)
         if best is not None and oversized(best):
             # a region larger than Dimorphos can be holds ejecta: beside an extended region of Dimorphos's size in
             # the gate (and, with a place, where the lit part is expected), it is the dust, its root brighter than
             # the crescent beside it (held-out frame 107/212: the fan's root reported 15.9 px off)
-            sized = next((in_gate[i] for i in ranked if not oversized(in_gate[i])
-                          and not _point_source(regions, in_gate[i], cfg)), None)
-            if sized is not None:
-                return sized
+            return next((b for b in extended if not oversized(b)), best)
         return best
     if place is not None:
         # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself, within the gate
