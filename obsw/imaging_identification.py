@@ -91,8 +91,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   holding the most light in Dimorphos's expected area, never a point source when Dimorphos must be resolved, and
   then no region larger than Dimorphos can be (dust, a fan's root brighter than a crescent) while an extended one
   of its size is a candidate; when it need not be, with its place known, the likeliest as for Didymos, at the
-  place itself, reported when the probability of both, Didymos's times its own given Didymos (the place's Gaussian
-  within the gate), is at least ``dimorphos_min_report_probability`` (without a prediction: the largest up to
+  place itself, among the point sources within the orbit's largest apparent radius of Didymos's phase-corrected
+  centre (``_orbit_bound``: the gate's room for Didymos's whole radius is for regions it shares with ejecta),
+  reported when the probability of both, Didymos's times its own given Didymos (the place's Gaussian within the
+  gate), is at least ``dimorphos_min_report_probability`` (without a prediction: the largest up to
   ``dimorphos_max_area_fraction`` of Didymos).
 - **Phase correction** (beyond the paper): each body's centroid is its region centroid moved from the lit part of
   its disc to its centre (``imaging_geometry.phase_offset_px``), with the predicted radius (without a trajectory,
@@ -912,6 +914,17 @@ def _dimorphos_gate(didymos: Blob, exp: Expected | None, cfg: ImagingConfig) -> 
     return exp.orbit_radius_max + exp.didymos_radius_max + exp.dimorphos_radius_max + cfg.centroid_noise_px
 
 
+def _orbit_bound(didymos: Blob, exp: Expected, cfg: ImagingConfig) -> tuple[tuple[float, float], float]:
+    """Where a point-like Dimorphos's region centroid can be: within the orbit's largest apparent radius of Didymos's
+    centre (``_didymos_centre``), widened by that centre's error (a body up to ``radius_factor_max`` times its
+    predicted radius has its lit centroid that much further), Dimorphos's largest radius and the centroid noise. The
+    gate (``_dimorphos_gate``) adds Didymos's whole radius about its region centroid, for regions Didymos shares
+    with ejecta or cut from them; a point source is no such region (held-out 120/224: a star 20 px from a 7 px
+    Didymos, 18 px from its centre, the orbit 12 px, reported)."""
+    return (_didymos_centre(didymos, exp), exp.orbit_radius_max + (exp.radius_factor_max - 1.0) * exp.didymos_radius
+            + exp.dimorphos_radius_max + cfg.centroid_noise_px)
+
+
 def _near(blob: Blob, point: tuple[float, float], limit: float, oversized: bool) -> bool:
     """Whether a blob is within ``limit`` of a point: its centroid, or its box for a blob holding ejecta (Dimorphos,
     their source, is at one end of it)."""
@@ -972,7 +985,7 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
                       prev_did: Blob | None, prev_dim: Blob | None, cfg: ImagingConfig,
                       regions: Regions | None, didymos_probability: float = 1.0) -> Blob | None:
     """Dimorphos among the candidates, Didymos chosen with ``didymos_probability`` (see the module docstring); None if
-    not seen. An unresolved Dimorphos chosen among point sources by its place, within the gate about Didymos, is
+    not seen. An unresolved Dimorphos chosen among point sources by its place, within the orbit's reach of Didymos, is
     reported when the probability of both, Didymos's times its own given Didymos, is at least
     ``dimorphos_min_report_probability``: a point source beside a star taken for Didymos is as likely a star."""
     gate = _dimorphos_gate(didymos, exp, cfg)
@@ -1041,10 +1054,18 @@ def _choose_dimorphos(cands: list[Blob], didymos: Blob, exp: Expected | None, pl
             return next((b for b in extended if not oversized(b)), best)
         return best
     if place is not None:
-        # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself, within the gate
+        # shape cannot tell it from a star: as for an unresolved Didymos, at the place itself, within the gate; a
+        # point source only within the orbit's reach of Didymos's centre (``_orbit_bound``). The place's Gaussian is
+        # taken within the gate still: Dimorphos's region, merged with ejecta, may lie anywhere in it (taken within
+        # the orbit's reach instead, 4 stars of 44 bench seeds passed 0.95)
         may = _must_be_resolved(exp.dimorphos_radius * exp.radius_factor_max, regions, cfg)
-        chosen, probability = _likeliest(in_gate, lights, place, 0.0, may, regions, cfg,
-                                         _star_field(cands, n, regions, cfg), (origin, gate))
+        centre, reach = _orbit_bound(didymos, exp, cfg)
+        kept = [i for i, b in enumerate(in_gate)
+                if _distance(b.region_centroid_col_row, centre) <= reach or not _point_source(regions, b, cfg)]
+        if not kept:
+            return None
+        chosen, probability = _likeliest([in_gate[i] for i in kept], [lights[i] for i in kept], place, 0.0, may,
+                                         regions, cfg, _star_field(cands, n, regions, cfg), (origin, gate))
         return chosen if didymos_probability * probability >= cfg.dimorphos_min_report_probability else None
     return in_gate[max(range(len(in_gate)), key=lambda i: (lights[i], in_gate[i].area_px, -in_gate[i].label))]
 
