@@ -18,7 +18,9 @@ purpose; recorded again when ground uploaded Dimorphos's trajectory rather than 
 ground's behaviour on purpose), for the same seed. Since
 2026-12-02 the record keeps the numbers, compared to rounding, not a digest: the digest recorded on one processor
 failed on another (AMD EPYC with AVX2, after Intel runs) with the same code, as Numba and NumPy round by the host's
-vector units.
+vector units. Since 2026-12-07 the uplinked telecommands are kept decoded too (recorded again on an AMD EPYC): their
+digest, taken for exact on any machine, differed there, ground's trajectory upload and C/A-relative release times
+being floating-point results as well.
 
 The window covers acquisition, tracking and the hand-over to autonomous tracking with frames every 0.5 s and time
 reports. A change of flight behaviour must record the digest again: ``telemetry_digest`` of ``WINDOW``/``TIMELINE``

@@ -6,12 +6,12 @@ for the same seed. Housekeeping gained timing fields, so its packets are compare
 the zero-time software had (``ZERO_TIME_HK_FIELDS``); every other packet by its header and decoded fields, and the
 wheel torques, frame requests, clock adjustments, uplinked telecommands and the truth.
 
-``telemetry_record`` keeps the numbers, and ``differences`` compares two records: integers, strings, enumerations
-and the uplink exactly, floating-point values to a relative 1e-6 (and 1e-12 absolute). Floating point is not
-bit-identical across processors: Numba compiles for the host's vector units (AVX2 or AVX-512, with or without fused
-multiply-add) and NumPy dispatches its loops by CPU, so the same code rounds differently on another machine; a
-change of flight behaviour moves the figures far beyond that tolerance or changes a discrete field. The digest
-(SHA-256, exact) compares builds on one machine.
+``telemetry_record`` keeps the numbers, and ``differences`` compares two records: integers, strings and enumerations
+exactly, floating-point values (the uplinked telecommands' among them) to a relative 1e-6 (and 1e-12 absolute).
+Floating point is not bit-identical across processors: Numba compiles for the host's vector units (AVX2 or AVX-512,
+with or without fused multiply-add) and NumPy dispatches its loops by CPU, so the same code rounds differently on
+another machine; a change of flight behaviour moves the figures far beyond that tolerance or changes a discrete field.
+The digest (SHA-256, exact) compares builds on one machine.
 
     PYTHONPATH=. python tests/obsw/zero_time.py OUT.json SCENARIO.yaml...   (full runs, for the three scenarios)
 """
@@ -26,7 +26,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from contracts import pus
+from contracts import pus, sdls
 from flyby.inprocess import run_in_process
 from scenario.model import Scenario, load_run_inputs
 from timeline.model import Timeline
@@ -58,16 +58,19 @@ def telemetry_digest(scenario: Scenario, timeline: Timeline | None, max_steps: i
 
 
 def telemetry_record(scenario: Scenario, timeline: Timeline | None, max_steps: int | None = None) -> dict[str, Any]:
-    """The run's replies, telemetry (housekeeping by its zero-time fields; every other packet by its decoded fields)
-    and truth as JSON values, and the SHA-256 of its uplink (ground's, exact on any machine)."""
+    """The run's replies, telemetry (housekeeping by its zero-time fields; every other packet by its decoded fields),
+    uplinked telecommands (each by its decoded header and fields: ground's trajectory upload is computed in floating
+    point too, and rounds by the processor; its MAC follows from them) and truth as JSON values."""
     replies: list[Any] = []
-    h_tc = hashlib.sha256()
+    tc: list[Any] = []
 
     def on_step(req: Any, rep: Any, frame: Any) -> None:
         request = None if rep.frame_request is None else rep.frame_request.model_dump(mode="json")
         replies.append([rep.step, list(rep.wheel_torque_nm), request, rep.clock_adjust_s])
         for raw in req.uplink:
-            h_tc.update(raw)
+            header, command = pus.decode_tc(sdls.packet_of(raw))
+            tc.append([req.step, header.model_dump(mode="json"), {"type": type(command).__name__,
+                                                                  **_json(command.model_dump())}])
 
     run = run_in_process(scenario, timeline, on_step=on_step, max_steps=max_steps)
     tm: list[Any] = []
@@ -81,7 +84,7 @@ def telemetry_record(scenario: Scenario, timeline: Timeline | None, max_steps: i
             body = {"undecoded": p.raw.hex()}
         tm.append([header, body])
     truth = [[t.t_s, list(t.q), t.pointing_error_rad, t.frame_id] for t in run.truth]
-    return dict(replies=replies, tm=tm, truth=truth, tc=h_tc.hexdigest(), frames=run.frames)
+    return dict(replies=replies, tm=tm, truth=truth, tc=tc, frames=run.frames)
 
 
 def _json(value: Any) -> Any:
