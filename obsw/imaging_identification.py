@@ -724,8 +724,9 @@ def _placed(blobs: list[Blob], exp: Expected | None, regions: Regions | None, cf
 def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expected, place: _Place,
                    regions: Regions, cfg: ImagingConfig) -> int:
     """The index of Didymos when the ``best`` candidate holds Dimorphos's place with more than both bodies' expected
-    areas (Dimorphos with the ejecta it sheds, Didymos beside it or not): another extended candidate off the place,
-    within the orbit's reach of the place and of ``best``, of Didymos's size (within its largest region, at least
+    areas (Dimorphos with the ejecta it sheds, Didymos beside it or not): another extended candidate off the place
+    (its centroid: a large Didymos's box may reach within the place's radius, held-out 124/23), within the orbit's
+    reach of the place and of ``best``, of Didymos's size (within its largest region, at least
     its expected area at the farthest range) and with at least half the light; else ``best``. Ejecta leave
     Dimorphos, so a fan of them brighter than a crescent holds the place; a second body-sized region within the
     orbit's reach is Didymos. The reach is from ``best`` too: the Dimorphos it would hold lies within its box, give
@@ -741,7 +742,8 @@ def _beside_ejecta(blobs: list[Blob], lights: list[float], best: int, exp: Expec
     smallest = exp.didymos_area / exp.radius_factor_max ** 2
     beside = [i for i, c in enumerate(blobs)
               if i != best and smallest <= c.area_px <= exp.didymos_area_max and lights[i] >= 0.5 * lights[best]
-              and place.radius_px < box_distance(c, place.col_row) <= reach and _box_gap_px(b, c) <= gap
+              and place.radius_px < _distance(c.region_centroid_col_row, place.col_row)
+              and box_distance(c, place.col_row) <= reach and _box_gap_px(b, c) <= gap
               and not _point_source(regions, c, cfg)]
     return max(beside, key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label)) if beside else best
 
