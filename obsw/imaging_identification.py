@@ -384,13 +384,16 @@ def _point_source(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
 
 
 def _blend_of_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
-    """Whether a blob no larger than two point sources' images side by side is two or more of them blended (a close
+    """Whether a blob no larger than two point sources' images side by side (in extent, and in area: each within
+    ``psf_reach_px`` of its centre) is two or more of them blended (a close
     double star, or an unresolved Didymos with Dimorphos beside it, which shape cannot tell from one): its light
     deblends (``Regions.deblended``) into objects and, with each of its pixels given to the object whose centroid is
     nearest, the light's spread about each group's own centroid (``light_spread_px2``'s, within the groups) is no
-    more than a point source's. A resolved disc split by its noise keeps the spread of its halves' widths (a disc of radius r, halved:
-    r^2 / 6 and the blur's), a pair of stars that of the blur alone."""
-    if blob.diameter_px > 4.0 * psf_reach_px(cfg) + 2.0 or regions.linear8 is None:
+    more than a point source's. A resolved disc split by its noise keeps the spread of its halves' widths (a disc of
+    radius r, halved: r^2 / 6 and the blur's), a pair of stars that of the blur alone."""
+    reach = psf_reach_px(cfg)
+    if blob.diameter_px > 4.0 * reach + 2.0 or blob.area_px > 2.0 * math.pi * reach ** 2 \
+            or regions.linear8 is None:
         return False
     kept = set(regions.part_pixels)
     try:
@@ -681,15 +684,19 @@ def _best_didymos(blobs: list[Blob], exp: Expected | None, regions: Regions | No
     resolved = _didymos_resolved(exp, regions, cfg)
     if place is not None and stars is not None:
         may = _must_be_resolved(exp.didymos_radius * exp.radius_factor_max, regions, cfg)
-        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg, stars)
-    ranked = sorted(range(len(blobs)), reverse=True, key=lambda i: (lights[i], blobs[i].area_px, -blobs[i].label))
-    best = ranked[0]
-    if resolved:
+        return _likeliest(blobs, lights, place, exp.orbit_radius_max, may, regions, cfg, stars, blends=True)
+    def rank(i: int) -> tuple[float, int, int]:
+        return lights[i], blobs[i].area_px, -blobs[i].label
+
+    best = max(range(len(blobs)), key=rank)
+    if resolved and _star_like(regions, blobs[best], cfg):
         # never a star however bright, nor a close pair of them (``_star_like``): the brightest candidate that is
         # neither; when every one is, Didymos is not among them (unseen: too faint, or off the image)
-        best = next((i for i in ranked if not _star_like(regions, blobs[i], cfg)), -1)
+        brightest = best
+        best = next((i for i in sorted(range(len(blobs)), key=rank, reverse=True)
+                     if not _star_like(regions, blobs[i], cfg)), -1)
         if best < 0:
-            return blobs[ranked[0]], 0.0
+            return blobs[brightest], 0.0
     if resolved and place is not None:
         best = _beside_ejecta(blobs, lights, best, exp, place, regions, cfg)
     return blobs[best], 1.0
@@ -816,17 +823,25 @@ def _star_log_odds(place: _Place, stars: _StarField, prior: float, spread_px2: f
 
 def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: float, may_be_resolved: bool,
                regions: Regions, cfg: ImagingConfig, stars: _StarField | None = None,
-               bound: tuple[tuple[float, float], float] | None = None) -> tuple[Blob, float]:
+               bound: tuple[tuple[float, float], float] | None = None, blends: bool = False) -> tuple[Blob, float]:
     """The blob of highest ``_point_likelihood`` (ties: more light, larger, first), extended blobs first when the
     body may be resolved: a star is a point source. With the probability that it is the body: for a point source,
     its likelihood over the sum of the point sources' and, given the frame's ``stars``, of the body being none of
     them (``_star_log_odds``, ``cfg.unresolved_body_detected_prior``; without them, exactly one being the body);
     1 for an extended blob taken first (its shape told it from the stars). ``bound``: a centre and radius the body
-    is within (Dimorphos within its orbit's reach of Didymos), the place's Gaussian taken within it only. A blend
-    of point sources (``_blend_of_point_sources``) is not taken first: a close double star is one too."""
-    first = [may_be_resolved and not _star_like(regions, b, cfg) for b in blobs]
+    is within (Dimorphos within its orbit's reach of Didymos), the place's Gaussian taken within it only. With
+    ``blends`` (Didymos), a blend of point sources (``_blend_of_point_sources``) is not taken first: a close double
+    star is one too (Dimorphos, near its place in the gate, is not tested: each test deblends, about a millisecond)."""
+    first = [may_be_resolved and not _point_source(regions, b, cfg) for b in blobs]
     scores = [_point_likelihood(b, light, place, reach_px) for b, light in zip(blobs, lights, strict=True)]
-    best = max(range(len(blobs)), key=lambda i: (first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label))
+
+    def rank(i: int) -> tuple[bool, float, float, int, int]:
+        return first[i], scores[i], lights[i], blobs[i].area_px, -blobs[i].label
+
+    best = max(range(len(blobs)), key=rank)
+    while blends and first[best] and _blend_of_point_sources(regions, blobs[best], cfg):  # where it decides: it costs
+        first[best] = False
+        best = max(range(len(blobs)), key=rank)
     if first[best]:
         return blobs[best], 1.0
     top = scores[best]
