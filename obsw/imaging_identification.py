@@ -331,14 +331,20 @@ class Regions:
         return out
 
 
+def _weighted_pixels(regions: Regions, blob: Blob) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A blob's pixels' light above the threshold (raw values, the 8-bit codes taken back through the compression
+    table), rows and columns."""
+    assert regions.linear8 is not None
+    sel = regions.pixels_of(blob)
+    rows, cols = np.divmod(regions.components.pixel_index[sel], regions.width)
+    return regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8], rows, cols
+
+
 def light_spread_px2(regions: Regions, blob: Blob) -> float:
     """The spread of a blob's light: the variance, mean of both axes, px^2, of its pixels' positions weighted by
     their light above the threshold (raw values, the 8-bit codes taken back through the compression table). A point
     source spreads it as the point-spread function does; a resolved disc of radius r adds r^2 / 4."""
-    assert regions.linear8 is not None
-    sel = regions.pixels_of(blob)
-    w = regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8]
-    rows, cols = np.divmod(regions.components.pixel_index[sel], regions.width)
+    w, rows, cols = _weighted_pixels(regions, blob)
     total = float(w.sum())
     if total <= 0.0:
         return 0.0
@@ -401,14 +407,10 @@ def _blend_of_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfig) ->
                                     regions.free_label(int(regions.components.area_px.size) + 1))
         if len(objects) < 2:
             return False
-        sel = regions.pixels_of(blob)
-        w = regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8]
-        rows, cols = np.divmod(regions.components.pixel_index[sel], regions.width)
+        w, rows, cols = _weighted_pixels(regions, blob)
         centres = []
         for o in objects:
-            mine = regions.pixels_of(o)
-            wo = regions.linear8[regions.values8[mine]] - regions.linear8[regions.threshold_dn8]
-            ro, co = np.divmod(regions.components.pixel_index[mine], regions.width)
+            wo, ro, co = _weighted_pixels(regions, o)
             total = float(wo.sum())
             if total <= 0.0:
                 return False
