@@ -166,6 +166,9 @@ class Regions:
     rows: list[int] = field(default_factory=list)  # each region's row in histograms["regions"] (-1: not described)
     light: dict[int, list[float]] = field(default_factory=dict)  # n -> aperture_dn8 of n px of each row
     linear8: np.ndarray | None = None  # the raw value each 8-bit code stands for (``light_spread_px2``)
+    # a blob -> whether it is a blend of point sources (``_blend_of_point_sources``: a deblending, asked of one
+    # Didymos candidate by each of a frame's two or three choices)
+    blends: dict[Blob, bool] = field(default_factory=dict)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
               image_size: int | None = None, cuts: tuple[int | tuple[float, float, float] | Without, ...] = (),
@@ -264,6 +267,8 @@ class Regions:
         box = np.full(h * w, -1, dtype=np.int16)
         box[flat] = vals
         box = box.reshape(h, w)
+        if kernels.single_peak(box):  # no level can part it (a bright point source's image, the common case)
+            return [blob]
         index_in_sel = np.full(h * w, -1, dtype=np.int64)
         index_in_sel[flat] = np.arange(sel.size)
         for level in np.unique(np.linspace(self.threshold_dn8 + 1, peak, levels).round().astype(np.int64)).tolist():
@@ -401,6 +406,14 @@ def _blend_of_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfig) ->
     if blob.diameter_px > 4.0 * reach + 2.0 or blob.area_px > 2.0 * math.pi * reach ** 2 \
             or regions.linear8 is None:
         return False
+    known = regions.blends.get(blob)  # a blob's every field, its cuts from its region included, fixes its pixels
+    if known is None:
+        known = regions.blends[blob] = _deblends_into_point_sources(regions, blob, cfg)
+    return known
+
+
+def _deblends_into_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfig) -> bool:
+    """``_blend_of_point_sources``'s deblending test, for a blob small enough to be a blend."""
     kept = set(regions.part_pixels)
     try:
         objects = regions.deblended(blob, cfg.deblend_levels, cfg.deblend_min_flux_fraction,

@@ -529,6 +529,49 @@ def surface_count(values8: np.ndarray, n: int, threshold_dn8: int) -> int:
     return count
 
 
+@njit(cache=True, nogil=True)
+def single_peak(box: np.ndarray) -> bool:
+    """Whether the pixels of ``box`` (2-D, int; -1: not the region's) hold at most one regional maximum: an
+    8-connected plateau of equal values none of whose pixels has a higher neighbour. Every 8-connected part of the
+    pixels at or above any level holds one (its highest plateau), and a regional maximum's part at its own value is
+    the plateau alone; so one regional maximum is exactly no level parting the pixels."""
+    h, w = box.shape
+    seen = np.zeros((h, w), np.bool_)
+    stack = np.empty(h * w, np.int64)
+    maxima = 0
+    for r0 in range(h):
+        for c0 in range(w):
+            v = box[r0, c0]
+            if v < 0 or seen[r0, c0]:
+                continue
+            # flood the plateau of value v holding (r0, c0), noting whether any of its pixels has a higher neighbour
+            seen[r0, c0] = True
+            stack[0] = r0 * w + c0
+            n = 1
+            higher = False
+            while n > 0:
+                n -= 1
+                r, c = divmod(stack[n], w)
+                for dr in range(-1, 2):
+                    for dc in range(-1, 2):
+                        rr = r + dr
+                        cc = c + dc
+                        if rr < 0 or rr >= h or cc < 0 or cc >= w:
+                            continue
+                        u = box[rr, cc]
+                        if u > v:
+                            higher = True
+                        elif u == v and not seen[rr, cc]:
+                            seen[rr, cc] = True
+                            stack[n] = rr * w + cc
+                            n += 1
+            if not higher:
+                maxima += 1
+                if maxima > 1:
+                    return False
+    return True
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) the kernels now, for the frame types the camera gives."""
     frame = np.zeros((4, 4), np.uint16)
@@ -546,6 +589,7 @@ def warm_up() -> None:
     values_at(np.zeros(4, np.uint16), one, np.zeros(4096, np.uint8))
     top_light(np.zeros((1, 256), np.int64), 1, 0)
     surface_count(np.zeros(1, np.uint8), 1, 0)
+    single_peak(np.zeros((1, 1), np.int16))
     median_mad(hist)
     add_to_blocks(sums.reshape(-1), maxima.reshape(-1), hist, one, one, 4)
     union_sorted(one, empty)

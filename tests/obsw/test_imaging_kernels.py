@@ -130,3 +130,27 @@ def test_values_at_is_numpys_double_gather(seed: int) -> None:
     index = rng.integers(0, image.size, int(rng.integers(0, 300))).astype(np.int64)
     table = rng.integers(0, 256, 4096).astype(np.uint8)
     np.testing.assert_array_equal(k.values_at(image, index, table), table[image[index]])
+
+
+@settings(max_examples=300, deadline=None)
+@given(seeds)
+def test_single_peak_exactly_when_no_level_parts_the_region(seed: int) -> None:
+    """single_peak: true exactly when at every level the region's pixels at or above it form at most one 8-connected
+    part (OpenCV's labelling, level by level)."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    h, w = int(rng.integers(1, 14)), int(rng.integers(1, 14))
+    rows, cols = np.mgrid[0:h, 0:w]
+    img = np.zeros((h, w))
+    for _ in range(int(rng.integers(1, 4))):  # blurred point sources, quantised coarsely enough for plateaus
+        r0, c0, s = rng.uniform(0, h), rng.uniform(0, w), rng.uniform(0.5, 3.0)
+        img += rng.uniform(10, 200) * np.exp(-((rows - r0) ** 2 + (cols - c0) ** 2) / (2 * s * s))
+    img += rng.normal(0.0, rng.uniform(0.0, 8.0), img.shape)
+    box = np.clip(np.round(img / rng.choice([1, 4, 16])), 0, 255).astype(np.int16)
+    box[rng.random((h, w)) < rng.uniform(0.0, 0.4)] = -1  # pixels not the region's
+    parted = False
+    for level in np.unique(box[box >= 0]).tolist():
+        n, _ = cv2.connectedComponents((box >= level).astype(np.uint8), connectivity=8)
+        parted = parted or n - 1 >= 2
+    assert k.single_peak(box) == (not parted)
