@@ -169,6 +169,10 @@ class Regions:
     # a blob -> whether it is a blend of point sources (``_blend_of_point_sources``: a deblending, asked of one
     # Didymos candidate by each of a frame's two or three choices)
     blends: dict[Blob, bool] = field(default_factory=dict)
+    spreads: dict[Blob, float] = field(default_factory=dict)  # a blob -> ``light_spread_px2``, asked ~30 times a frame
+    # the foreground's positions grouped by region (each in raster order) and where each region's start, made at the
+    # first ``pixels_of`` (one pass, instead of a pass over the whole foreground for each blob asked about)
+    by_region: list[np.ndarray] = field(default_factory=list)
 
     def blobs(self, first_label: int = 1, offset_col_row: tuple[int, int] = (0, 0), trimmed_from: int = 0,
               image_size: int | None = None, cuts: tuple[int | tuple[float, float, float] | Without, ...] = (),
@@ -209,7 +213,17 @@ class Regions:
         part = self.part_pixels.get(blob.label)
         if part is not None:
             return part
-        return np.flatnonzero(self.components.pixel_component == blob.label - 1)
+        if not self.by_region:
+            starts = np.zeros(self.components.area_px.size + 1, dtype=np.int64)
+            np.cumsum(self.components.area_px, out=starts[1:])
+            order = kernels.grouped_positions(self.components.pixel_component, starts)
+            order.setflags(write=False)
+            self.by_region.extend((order, starts))
+        order, starts = self.by_region
+        i = blob.label - 1
+        if not 0 <= i < starts.size - 1:
+            return order[:0]
+        return order[starts[i]:starts[i + 1]]
 
     def parts(self, blob: Blob, n_pixels: int, first_label: int) -> list[Blob]:
         """The brightest part of a blob: its pixels at or above the level that leaves at least ``n_pixels`` of
@@ -349,12 +363,17 @@ def light_spread_px2(regions: Regions, blob: Blob) -> float:
     """The spread of a blob's light: the variance, mean of both axes, px^2, of its pixels' positions weighted by
     their light above the threshold (raw values, the 8-bit codes taken back through the compression table). A point
     source spreads it as the point-spread function does; a resolved disc of radius r adds r^2 / 4."""
+    known = regions.spreads.get(blob)  # a blob's every field, its cuts from its region included, fixes its pixels
+    if known is not None:
+        return known
     w, rows, cols = _weighted_pixels(regions, blob)
     total = float(w.sum())
-    if total <= 0.0:
-        return 0.0
-    mc, mr = float(w @ cols) / total, float(w @ rows) / total
-    return 0.5 * (float(w @ ((cols - mc) ** 2)) + float(w @ ((rows - mr) ** 2))) / total
+    spread = 0.0
+    if total > 0.0:
+        mc, mr = float(w @ cols) / total, float(w @ rows) / total
+        spread = 0.5 * (float(w @ ((cols - mc) ** 2)) + float(w @ ((rows - mr) ** 2))) / total
+    regions.spreads[blob] = spread
+    return spread
 
 
 def _must_be_resolved(radius_min_px: float, regions: Regions | None, cfg: ImagingConfig) -> bool:

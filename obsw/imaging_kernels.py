@@ -572,6 +572,19 @@ def single_peak(box: np.ndarray) -> bool:
     return True
 
 
+@njit(cache=True, nogil=True)
+def grouped_positions(component: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The positions 0..N-1 grouped by ``component`` (0-based, N), each group in ascending order from
+    ``starts[c]`` (each group's first slot, K + 1 long): a counting sort, ``np.argsort(component, kind="stable")``."""
+    order = np.empty(component.size, np.int64)
+    cursor = starts[:-1].copy()
+    for i in range(component.size):
+        c = component[i]
+        order[cursor[c]] = i
+        cursor[c] += 1
+    return order
+
+
 def warm_up() -> None:
     """Compile (or load from the cache) the kernels now, for the frame types the camera gives."""
     frame = np.zeros((4, 4), np.uint16)
@@ -590,6 +603,7 @@ def warm_up() -> None:
     top_light(np.zeros((1, 256), np.int64), 1, 0)
     surface_count(np.zeros(1, np.uint8), 1, 0)
     single_peak(np.zeros((1, 1), np.int16))
+    grouped_positions(one, np.array([0, 1], np.int64))
     median_mad(hist)
     add_to_blocks(sums.reshape(-1), maxima.reshape(-1), hist, one, one, 4)
     union_sorted(one, empty)

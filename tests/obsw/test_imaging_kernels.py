@@ -154,3 +154,14 @@ def test_single_peak_exactly_when_no_level_parts_the_region(seed: int) -> None:
         n, _ = cv2.connectedComponents((box >= level).astype(np.uint8), connectivity=8)
         parted = parted or n - 1 >= 2
     assert k.single_peak(box) == (not parted)
+
+
+@settings(max_examples=200, deadline=None)
+@given(seeds)
+def test_grouped_positions_is_numpys_stable_argsort(seed: int) -> None:
+    """grouped_positions: the positions grouped by component, each group ascending: numpy's stable argsort."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 20))
+    component = rng.integers(0, n, int(rng.integers(0, 500))).astype(np.int64)
+    starts = np.concatenate(([0], np.cumsum(np.bincount(component, minlength=n)))).astype(np.int64)
+    assert k.grouped_positions(component, starts).tolist() == np.argsort(component, kind="stable").tolist()
