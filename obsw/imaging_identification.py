@@ -40,8 +40,10 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   (``_brightest_surface_at``: a plume seen past a crescent's dark limb is a region of its own).
 - **Ejecta merged with a body.** A blob larger than both bodies together can be holds the ejecta plume: it is
   trimmed to its brightest pixels of the expected area of both bodies, the 8-connected parts of which take its
-  place; a blob with room for both is split the same way when a part of it is Dimorphos (no larger than Dimorphos
-  can be, or larger, holding ejecta, at the trajectory's place when that place is closer than the orbit's radius).
+  place, those within Didymos's reach of Dimorphos's place only (``_near_place``: a star in the plume's region
+  beyond it holds its brightest pixels; none there, the blob stays whole); a blob with room for both is split the
+  same way when a part of it is Dimorphos (no larger than Dimorphos can be, or larger, holding ejecta, at the
+  trajectory's place when that place is closer than the orbit's radius).
   The blob taken for Dimorphos, when larger than Dimorphos can be or than the disc of its predicted radius widened
   by the point-spread function's reach (``psf_reach_px``: a small body's light stays within it, ejecta do not), is
   trimmed to its brightest pixels of
@@ -170,7 +172,7 @@ class Regions:
     # Didymos candidate by each of a frame's two or three choices)
     blends: dict[Blob, bool] = field(default_factory=dict)
     spreads: dict[Blob, float] = field(default_factory=dict)  # a blob -> ``light_spread_px2``, asked ~30 times a frame
-    # the foreground's positions grouped by region (each in raster order) and where each region's start, made at the
+    # the foreground's positions grouped by region (each in raster order) and where each region starts, made at the
     # first ``pixels_of`` (one pass, instead of a pass over the whole foreground for each blob asked about)
     by_region: list[np.ndarray] = field(default_factory=list)
 
@@ -363,7 +365,7 @@ def light_spread_px2(regions: Regions, blob: Blob) -> float:
     """The spread of a blob's light: the variance, mean of both axes, px^2, of its pixels' positions weighted by
     their light above the threshold (raw values, the 8-bit codes taken back through the compression table). A point
     source spreads it as the point-spread function does; a resolved disc of radius r adds r^2 / 4."""
-    known = regions.spreads.get(blob)  # a blob's every field, its cuts from its region included, fixes its pixels
+    known = regions.spreads.get(blob)  # within a frame a blob's fields (label, cuts, area, box, values) are its pixels
     if known is not None:
         return known
     w, rows, cols = _weighted_pixels(regions, blob)
@@ -425,7 +427,7 @@ def _blend_of_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfig) ->
     if blob.diameter_px > 4.0 * reach + 2.0 or blob.area_px > 2.0 * math.pi * reach ** 2 \
             or regions.linear8 is None:
         return False
-    known = regions.blends.get(blob)  # a blob's every field, its cuts from its region included, fixes its pixels
+    known = regions.blends.get(blob)  # within a frame a blob's fields (label, cuts, area, box, values) are its pixels
     if known is None:
         known = regions.blends[blob] = _deblends_into_point_sources(regions, blob, cfg)
     return known
