@@ -361,6 +361,15 @@ def _weighted_pixels(regions: Regions, blob: Blob) -> tuple[np.ndarray, np.ndarr
     return regions.linear8[regions.values8[sel]] - regions.linear8[regions.threshold_dn8], rows, cols
 
 
+def _light_centroid(w: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> tuple[float, float, float]:
+    """Pixels' total light ``w`` and its centroid: (total, column, row), the centroid nan when the total is not
+    positive."""
+    total = float(w.sum())
+    if total <= 0.0:
+        return total, math.nan, math.nan
+    return total, float(w @ cols) / total, float(w @ rows) / total
+
+
 def light_spread_px2(regions: Regions, blob: Blob) -> float:
     """The spread of a blob's light: the variance, mean of both axes, px^2, of its pixels' positions weighted by
     their light above the threshold (raw values, the 8-bit codes taken back through the compression table). A point
@@ -369,10 +378,9 @@ def light_spread_px2(regions: Regions, blob: Blob) -> float:
     if known is not None:
         return known
     w, rows, cols = _weighted_pixels(regions, blob)
-    total = float(w.sum())
+    total, mc, mr = _light_centroid(w, rows, cols)
     spread = 0.0
     if total > 0.0:
-        mc, mr = float(w @ cols) / total, float(w @ rows) / total
         spread = 0.5 * (float(w @ ((cols - mc) ** 2)) + float(w @ ((rows - mr) ** 2))) / total
     regions.spreads[blob] = spread
     return spread
@@ -444,21 +452,19 @@ def _deblends_into_point_sources(regions: Regions, blob: Blob, cfg: ImagingConfi
         w, rows, cols = _weighted_pixels(regions, blob)
         centres = []
         for o in objects:
-            wo, ro, co = _weighted_pixels(regions, o)
-            total = float(wo.sum())
+            total, mc, mr = _light_centroid(*_weighted_pixels(regions, o))
             if total <= 0.0:
                 return False
-            centres.append((float(wo @ co) / total, float(wo @ ro) / total))
+            centres.append((mc, mr))
         c = np.array(centres)
         group = np.argmin((cols[:, None] - c[None, :, 0]) ** 2 + (rows[:, None] - c[None, :, 1]) ** 2, axis=1)
         within = 0.0
         for g in range(len(objects)):
             m = group == g
             wg = w[m]
-            total = float(wg.sum())
+            total, mc, mr = _light_centroid(wg, rows[m], cols[m])
             if total <= 0.0:
                 continue
-            mc, mr = float(wg @ cols[m]) / total, float(wg @ rows[m]) / total
             within += float(wg @ ((cols[m] - mc) ** 2 + (rows[m] - mr) ** 2))
         total = float(w.sum())
         return total > 0.0 and 0.5 * within / total <= cfg.point_source_sigma_max_px ** 2
