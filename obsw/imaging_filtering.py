@@ -219,7 +219,8 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
     if not working:
         binned_image = np.empty((n, n), dtype=np.uint16)
     hist = np.zeros(vmax + 1, dtype=np.int64)
-    if kernels.block_statistics(pixels, f, sums, maxima, binned_image, hist) > vmax:
+    row_top = np.empty(n, dtype=np.int64)
+    if kernels.block_statistics(pixels, f, sums, maxima, binned_image, hist, row_top) > vmax:
         raise FrameError(_RANGE.format(bit_depth=bit_depth, vmax=vmax))
     flat_sums = sums.reshape(-1)
     flat_binned = binned_image.reshape(-1)
@@ -241,7 +242,7 @@ def filtered(frame: np.ndarray, cfg: ImagingConfig, bit_depth: int, bad: BadPixe
         # blocks whose brightest pixel stands out; a block's corrected sum keeps the test exact where the map changed
         # nothing, and the blocks the map changed are examined anyway
         blocks = kernels.standing_out(sums, maxima, area, cfg.outlier_k_sigma * sigma, cfg.outlier_ratio,
-                                      float(background))
+                                      float(background), row_top)
         if bad_blocks.size:
             blocks = kernels.union_sorted(blocks, bad_blocks)
         if blocks.size:

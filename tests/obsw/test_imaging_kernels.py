@@ -165,3 +165,64 @@ def test_grouped_positions_is_numpys_stable_argsort(seed: int) -> None:
     component = rng.integers(0, n, int(rng.integers(0, 500))).astype(np.int64)
     starts = np.concatenate(([0], np.cumsum(np.bincount(component, minlength=n)))).astype(np.int64)
     assert k.grouped_positions(component, starts).tolist() == np.argsort(component, kind="stable").tolist()
+
+
+def _frame(rng: np.random.Generator, f: int) -> np.ndarray:
+    """A frame of n f x n f 16-bit pixels: a background with noise, a few sharp defects and a bright patch, sometimes
+    values up to the 16-bit limit (the 32-bit arithmetic's worst case), sometimes a view with a row stride."""
+    n = int(rng.integers(1, 24))
+    frame = rng.integers(90, 130, (n * f, n * f)).astype(np.uint16)
+    for _ in range(int(rng.integers(0, 8))):
+        frame[rng.integers(0, n * f), rng.integers(0, n * f)] = rng.integers(200, 65536)
+    if rng.random() < 0.3:
+        frame[: n * f // 2, : n * f // 2] = rng.integers(60000, 65536, (n * f // 2, n * f // 2))
+    if rng.random() < 0.3:  # a window into a wider frame: rows not contiguous with each other
+        wide = np.zeros((n * f, n * f + 2 * f), np.uint16)
+        wide[:, f:-f] = frame
+        frame = wide[:, f:-f]
+    return frame
+
+
+@settings(max_examples=300, deadline=None)
+@given(seeds, st.sampled_from([2, 3, 4]))
+def test_block_statistics_are_the_blocks_sums_maxima_rounded_means_and_row_bounds(seed: int, f: int) -> None:
+    """block_statistics: numpy's block sums and maxima, floor(sum / f^2 + 1/2), the histogram of those means, each
+    block row's largest f^2 max - sum, and the frame's largest value; beyond the histogram, it is left uncounted."""
+    rng = np.random.default_rng(seed)
+    frame = _frame(rng, f)
+    n = frame.shape[0] // f
+    blocks = frame.astype(np.int64).reshape(n, f, n, f)
+    sums, peaks = blocks.sum(axis=(1, 3)), blocks.max(axis=(1, 3))
+    means = (sums + f * f // 2) // (f * f)
+    got_sums, got_max = np.empty((n, n), np.int32), np.empty((n, n), np.uint16)
+    got_means, top = np.empty((n, n), np.uint16), np.empty(n, np.int64)
+    hist = np.zeros(65536 if rng.random() < 0.5 else 4096, np.int64)
+    peak = k.block_statistics(frame, f, got_sums, got_max, got_means, hist, top)
+    assert peak == int(frame.max())
+    np.testing.assert_array_equal(got_sums, sums)
+    np.testing.assert_array_equal(got_max, peaks)
+    np.testing.assert_array_equal(got_means, means)
+    np.testing.assert_array_equal(top, np.max(f * f * peaks - sums, axis=1))
+    want_hist = np.bincount(means.ravel(), minlength=65536)[: hist.size] if peak < hist.size else 0
+    np.testing.assert_array_equal(hist, want_hist)
+
+
+@settings(max_examples=300, deadline=None)
+@given(seeds)
+def test_standing_out_finds_the_blocks_its_rule_selects_whatever_rows_it_passes_over(seed: int) -> None:
+    """standing_out: the blocks with f^2 M - sum > (f^2 - 1) margin + (ratio - 1) max(sum - M - (f^2 - 1) background, 0),
+    every one of them, when the row bounds are the rows' largest f^2 M - sum, or any larger bound."""
+    rng = np.random.default_rng(seed)
+    f = int(rng.choice([2, 4]))
+    frame = _frame(rng, f)
+    n = frame.shape[0] // f
+    blocks = frame.astype(np.int64).reshape(n, f, n, f)
+    sums, peaks = blocks.sum(axis=(1, 3)), blocks.max(axis=(1, 3))
+    area = f * f
+    margin, ratio, background = float(rng.uniform(0, 100)), float(rng.uniform(1, 4)), float(rng.uniform(0, 150))
+    excess = area * peaks - sums
+    rule = (excess > np.floor((area - 1) * margin)) & (
+        excess > (area - 1) * margin + (ratio - 1) * np.maximum(sums - peaks - (area - 1) * background, 0.0))
+    bound = np.max(excess, axis=1) + rng.integers(0, 3, n) * rng.integers(0, 1000, n)
+    got = k.standing_out(sums.astype(np.int32), peaks.astype(np.uint16), area, margin, ratio, background, bound)
+    np.testing.assert_array_equal(got, np.flatnonzero(rule))
