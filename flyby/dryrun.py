@@ -21,6 +21,7 @@ from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from analysis.runfolder import RunData
@@ -283,8 +284,15 @@ def dry_run(sc: Scenario, timeline: Timeline, belief: FlybyBelief | None = None,
     universe_kernels.warm_up(camera=fidelity == "image")
     if sc.ground.upload_bad_pixel_map:
         compose.ground_bad_pixel_map(sc)  # the cases' one calibration, cached here before the workers fork
-    with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
-        return list(pool.map(_rehearse, todo))
+    # OpenCV's thread pool does not survive a fork: a child reconfiguring it (each case's universe sets one thread)
+    # waits forever on the idle threads of a pool this process ran; with one thread here there is none to copy
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(todo))) as pool:
+            return list(pool.map(_rehearse, todo))
+    finally:
+        cv2.setNumThreads(threads)
 
 
 def _command_text(timeline: Timeline, row: int) -> str:

@@ -158,3 +158,33 @@ def test_bad_inputs_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert main(["ground", "--dry-run", str(TIMELINE), "--scenario", str(NOMINAL), "--trajectory", str(traj)]) == \
         EXIT_CONFIG
     assert "exactly one of ca_time_utc and ca_time_s" in capsys.readouterr().err
+
+
+_AFTER_OPENCV_THREADS = """
+import sys
+from pathlib import Path
+import cv2
+import numpy as np
+from flyby.dryrun import dry_run
+from scenario.model import load_run_inputs
+cv2.setNumThreads(2)
+image = np.random.default_rng(0).random((1500, 1500)).astype(np.float32)
+for _ in range(4):  # OpenCV's pool of threads started and left waiting, as any earlier work in the process leaves it
+    cv2.GaussianBlur(image, (31, 31), 5.0)
+sc, timeline = load_run_inputs(Path(sys.argv[1]))
+results = dry_run(sc, timeline, jobs=2)
+print(len(results), cv2.getNumThreads())
+"""
+
+
+def test_a_dry_run_forks_its_cases_safely_after_opencv_ran_threads() -> None:
+    """A process that ran OpenCV on several threads, then dry-runs with two jobs: every case comes back (a child
+    reconfiguring the pool it inherited used to wait forever), and the process keeps its OpenCV threads."""
+    import subprocess
+    import sys
+
+    root = Path(__file__).parents[2]
+    done = subprocess.run([sys.executable, "-c", _AFTER_OPENCV_THREADS, str(NOMINAL)], cwd=root, capture_output=True,
+                          text=True, timeout=240)  # generous (a dry run here takes 15 s): the hang never ended
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == [str(len(cases())), "2"]
