@@ -210,8 +210,8 @@ def test_block_statistics_are_the_blocks_sums_maxima_rounded_means_and_row_bound
 @settings(max_examples=300, deadline=None)
 @given(seeds)
 def test_standing_out_finds_the_blocks_its_rule_selects_whatever_rows_it_passes_over(seed: int) -> None:
-    """standing_out: the blocks with f^2 M - sum > (f^2 - 1) margin + (ratio - 1) max(sum - M - (f^2 - 1) background, 0),
-    every one of them, when the row bounds are the rows' largest f^2 M - sum, or any larger bound."""
+    """standing_out: the blocks with f^2 M - sum > (f^2 - 1) margin + (ratio - 1) max(sum - M - (f^2 - 1) bg, 0) (bg
+    the background), every one of them, when the row bounds are the rows' largest f^2 M - sum, or any larger bound."""
     rng = np.random.default_rng(seed)
     f = int(rng.choice([2, 4]))
     frame = _frame(rng, f)
