@@ -5,6 +5,8 @@ them."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -180,9 +182,6 @@ print(len(results), cv2.getNumThreads())
 def test_a_dry_run_forks_its_cases_safely_after_opencv_ran_threads() -> None:
     """A process that ran OpenCV on several threads, then dry-runs with two jobs: every case comes back (a child
     reconfiguring the pool it inherited used to wait forever), and the process keeps its OpenCV threads."""
-    import subprocess
-    import sys
-
     root = Path(__file__).parents[2]
     done = subprocess.run([sys.executable, "-c", _AFTER_OPENCV_THREADS, str(NOMINAL)], cwd=root, capture_output=True,
                           text=True, timeout=240)  # generous (a dry run here takes 15 s): the hang never ended

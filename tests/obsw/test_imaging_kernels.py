@@ -183,6 +183,13 @@ def _frame(rng: np.random.Generator, f: int) -> np.ndarray:
     return frame
 
 
+def _block_sums_and_maxima(frame: np.ndarray, f: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each f x f block's sum and largest value, (n, n) int64, by numpy's reductions."""
+    n = frame.shape[0] // f
+    blocks = frame.astype(np.int64).reshape(n, f, n, f)
+    return blocks.sum(axis=(1, 3)), blocks.max(axis=(1, 3))
+
+
 @settings(max_examples=300, deadline=None)
 @given(seeds, st.sampled_from([2, 3, 4]))
 def test_block_statistics_are_the_blocks_sums_maxima_rounded_means_and_row_bounds(seed: int, f: int) -> None:
@@ -191,8 +198,7 @@ def test_block_statistics_are_the_blocks_sums_maxima_rounded_means_and_row_bound
     rng = np.random.default_rng(seed)
     frame = _frame(rng, f)
     n = frame.shape[0] // f
-    blocks = frame.astype(np.int64).reshape(n, f, n, f)
-    sums, peaks = blocks.sum(axis=(1, 3)), blocks.max(axis=(1, 3))
+    sums, peaks = _block_sums_and_maxima(frame, f)
     means = (sums + f * f // 2) // (f * f)
     got_sums, got_max = np.empty((n, n), np.int32), np.empty((n, n), np.uint16)
     got_means, top = np.empty((n, n), np.uint16), np.empty(n, np.int64)
@@ -216,8 +222,7 @@ def test_standing_out_finds_the_blocks_its_rule_selects_whatever_rows_it_passes_
     f = int(rng.choice([2, 4]))
     frame = _frame(rng, f)
     n = frame.shape[0] // f
-    blocks = frame.astype(np.int64).reshape(n, f, n, f)
-    sums, peaks = blocks.sum(axis=(1, 3)), blocks.max(axis=(1, 3))
+    sums, peaks = _block_sums_and_maxima(frame, f)
     area = f * f
     margin, ratio, background = float(rng.uniform(0, 100)), float(rng.uniform(1, 4)), float(rng.uniform(0, 150))
     excess = area * peaks - sums
