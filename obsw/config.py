@@ -171,6 +171,17 @@ class TrackingConfig(Config):
         "Didymos's lines of sight against a nominal 30 s off, lagged 1.5 deg behind them by C/A-12 s and lost the "
         "target (60 % in view)",
     )
+    didymos_when_unseen_s: float | None = Field(
+        10.0,
+        gt=0,
+        description="in NOMINAL_TRACKING and ACQUISITION, once Dimorphos, seen before, has not been seen for this "
+        "long and its trajectory is not yet trusted, Didymos's trajectory, recognised on its own lines of sight "
+        "(when they fit it within cross_check_fit_sigma), stands in for Dimorphos's: pointed on (with "
+        "stand_in_pointed_on) and predicting the frames, its uncertainty widened by the orbit's radius, s (None: "
+        "ground's nominal). Dimorphos a point at the root of its plume, seen a few frames, with ground's nominal 3 "
+        "sigma late and near (worst-late-near, campaign seed 2026, run 39): the pointing drifted to 1.6 deg on the "
+        "nominal and the target was lost three times; 10 s: a few frames' dropout keeps the nominal",
+    )
     didymos_stands_in: bool = Field(
         True,
         description="while Dimorphos is not found and its trajectory not yet recognised, Didymos is found, and the "

@@ -31,7 +31,8 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
    wheel torques over the wheels in use (SAFE holds the attitude of its entry); a wheel reaching its momentum limit
    fails a parameter check; the loop follows ground's nominal until AUTONOMOUS_TRACKING, except while Dimorphos, its
    trajectory recognised, goes unseen (``_unseen_since_recognised``): then the recognised trajectory, and while
-   Didymos's stands in for a Dimorphos not yet recognised: then Didymos's (``pointing_trajectory``);
+   Didymos's stands in for a Dimorphos not yet recognised, or Dimorphos, seen before, goes unseen before its
+   trajectory is recognised (``_unseen_unrecognised``): then Didymos's (``pointing_trajectory``);
 9. FDIR: a failed parameter check is reported and recovered (SAFE); failed wheels are found
    (``obsw.wheel_health``); the service 12 definitions are checked (``obsw.monitoring``); the service 19 actions of
    the events raised are run (``obsw.event_action``);
@@ -1030,11 +1031,16 @@ class FlightSoftware:
     def _stand_in_trajectory(self) -> NominalTrajectory | None:
         """Before Dimorphos's own lines of sight are enough to recognise its trajectory, the one recognised on
         Didymos's standing in for them (on every line of sight of Didymos once Didymos's contradicted Dimorphos's:
-        ``_contradicted``), its uncertainties widened by the orbit's radius (Dimorphos is that far from Didymos at
-        most: along the track a C/A time, across it a C/A distance); None without enough of either."""
+        ``_contradicted``, or while Dimorphos goes unseen without enough stand-ins: ``_unseen_unrecognised``), its
+        uncertainties widened by the orbit's radius (Dimorphos is that far from Didymos at most: along the track a
+        C/A time, across it a C/A distance); None without enough of either."""
+        n = self.cfg.min_recognition_measurements
         stand_ins = self.didymos_recognizer if self._contradicted() else self.stand_in_recognizer
-        if self.recognizer is None or self._recognition_trusted() or stand_ins is None \
-                or stand_ins.measurement_count < self.cfg.min_recognition_measurements:
+        if self.recognizer is None or self._recognition_trusted():
+            return None
+        if (stand_ins is None or stand_ins.measurement_count < n) and self._unseen_unrecognised():
+            stand_ins = self.didymos_recognizer
+        if stand_ins is None or stand_ins.measurement_count < n:
             return None
         key = (stand_ins is self.didymos_recognizer, stand_ins.measurement_count)
         if self._stand_in_cache is None or self._stand_in_cache[0] != key:
@@ -1044,6 +1050,21 @@ class FlightSoftware:
                 "ca_time_sigma_s": math.hypot(traj.ca_time_sigma_s, r_km / traj.speed_km_s),
                 "ca_distance_sigma_km": math.hypot(traj.ca_distance_sigma_km, r_km)}))
         return self._stand_in_cache[1]
+
+    def _unseen_unrecognised(self) -> bool:
+        """Whether, in NOMINAL_TRACKING or ACQUISITION, Dimorphos, seen before, has gone unseen for
+        ``tracking.didymos_when_unseen_s`` before its trajectory is trusted, while Didymos's recognition (on every
+        line of sight of Didymos) has enough of them and fits its recent ones within its noise
+        (``tracking.cross_check_fit_sigma``): Didymos's trajectory then bounds Dimorphos's place to the orbit's
+        radius, where ground's nominal, 3 sigma off, carries the pointing away."""
+        limit, didymos = self.cfg.tracking.didymos_when_unseen_s, self.didymos_recognizer
+        tc = self.cfg.tracking
+        return limit is not None and didymos is not None and self._last_seen_obt is not None \
+            and self._req is not None and self.modes.mode in (Mode.NOMINAL_TRACKING, Mode.ACQUISITION) \
+            and self._tick_s() - self._last_seen_obt >= limit \
+            and didymos.measurement_count >= self.cfg.min_recognition_measurements \
+            and didymos.recent_scatter_rad(tc.cross_check_recent) \
+            <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad
 
     def _recognition_trusted(self) -> bool:
         """Whether Dimorphos's own lines of sight are enough for its recognised trajectory to be trusted: enough
