@@ -174,13 +174,15 @@ class TrackingConfig(Config):
     didymos_when_unseen_s: float | None = Field(
         10.0,
         gt=0,
-        description="in NOMINAL_TRACKING and ACQUISITION, once Dimorphos, seen before, has not been seen for this "
-        "long and its trajectory is not yet trusted, Didymos's trajectory, recognised on its own lines of sight "
+        description="in NOMINAL_TRACKING and ACQUISITION, once Dimorphos has not been seen for this long (since it "
+        "was last seen, or since ACQUISITION began) and its trajectory is not yet trusted, Didymos's trajectory, "
+        "recognised on its own lines of sight "
         "(when they fit it within cross_check_fit_sigma), stands in for Dimorphos's: pointed on (with "
         "stand_in_pointed_on) and predicting the frames, its uncertainty widened by the orbit's radius, s (None: "
         "ground's nominal). Dimorphos a point at the root of its plume, seen a few frames, with ground's nominal 3 "
         "sigma late and near (worst-late-near, campaign seed 2026, run 39): the pointing drifted to 1.6 deg on the "
-        "nominal and the target was lost three times; 10 s: a few frames' dropout keeps the nominal",
+        "nominal and the target was lost three times; run 0 of that campaign, Dimorphos not found for 80 s of "
+        "ACQUISITION, drifted to 1.40 deg before it was. 10 s: a few frames' dropout keeps the nominal",
     )
     didymos_stands_in: bool = Field(
         True,

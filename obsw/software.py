@@ -31,8 +31,9 @@ slots of the schedule table (``obsw.table``; by default all of them, in this ord
    wheel torques over the wheels in use (SAFE holds the attitude of its entry); a wheel reaching its momentum limit
    fails a parameter check; the loop follows ground's nominal until AUTONOMOUS_TRACKING, except while Dimorphos, its
    trajectory recognised, goes unseen (``_unseen_since_recognised``): then the recognised trajectory, and while
-   Didymos's stands in for a Dimorphos not yet recognised, or Dimorphos, seen before, goes unseen before its
-   trajectory is recognised (``_unseen_unrecognised``): then Didymos's (``pointing_trajectory``);
+   Didymos's stands in for a Dimorphos not yet recognised, or Dimorphos goes unseen (or is not found in
+   ACQUISITION) before its trajectory is recognised (``_unseen_unrecognised``): then Didymos's
+   (``pointing_trajectory``);
 9. FDIR: a failed parameter check is reported and recovered (SAFE); failed wheels are found
    (``obsw.wheel_health``); the service 12 definitions are checked (``obsw.monitoring``); the service 19 actions of
    the events raised are run (``obsw.event_action``);
@@ -1052,16 +1053,18 @@ class FlightSoftware:
         return self._stand_in_cache[1]
 
     def _unseen_unrecognised(self) -> bool:
-        """Whether, in NOMINAL_TRACKING or ACQUISITION, Dimorphos, seen before, has gone unseen for
-        ``tracking.didymos_when_unseen_s`` before its trajectory is trusted, while Didymos's recognition (on every
-        line of sight of Didymos) has enough of them and fits its recent ones within its noise
+        """Whether, in NOMINAL_TRACKING or ACQUISITION, Dimorphos has gone unseen for ``tracking.didymos_when_unseen_s``
+        (since it was last seen, or since ACQUISITION began) before its trajectory is trusted, while Didymos's
+        recognition (on every line of sight of Didymos) has enough of them and fits its recent ones within its noise
         (``tracking.cross_check_fit_sigma``): Didymos's trajectory then bounds Dimorphos's place to the orbit's
         radius, where ground's nominal, 3 sigma off, carries the pointing away."""
-        limit, didymos = self.cfg.tracking.didymos_when_unseen_s, self.didymos_recognizer
+        limit, didymos, m = self.cfg.tracking.didymos_when_unseen_s, self.didymos_recognizer, self.modes
         tc = self.cfg.tracking
-        return limit is not None and didymos is not None and self._last_seen_obt is not None \
-            and self._req is not None and self.modes.mode in (Mode.NOMINAL_TRACKING, Mode.ACQUISITION) \
-            and self._tick_s() - self._last_seen_obt >= limit \
+        seen = self._last_seen_obt if self._last_seen_obt is not None or m.mode != Mode.ACQUISITION \
+            else m.since_obt_s
+        return limit is not None and didymos is not None and seen is not None \
+            and self._req is not None and m.mode in (Mode.NOMINAL_TRACKING, Mode.ACQUISITION) \
+            and self._tick_s() - seen >= limit \
             and didymos.measurement_count >= self.cfg.min_recognition_measurements \
             and didymos.recent_scatter_rad(tc.cross_check_recent) \
             <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad
