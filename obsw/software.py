@@ -198,6 +198,8 @@ class FlightSoftware:
         self._stand_in_cache: tuple[tuple[bool, int], NominalTrajectory] | None = None
         # the cross-check's verdict for (Dimorphos's measurements, Didymos's measurements)
         self._cross_check: tuple[tuple[int, int], bool] | None = None
+        # whether Didymos's recognition fits its recent lines of sight, for its measurement count (``_didymos_fits``)
+        self._didymos_fit: tuple[int, bool] | None = None
         self.detections: Detections | None = None
         self.bad_pixels: BadPixelMap | None = None  # the camera's bad-pixel map, uploaded by ground
         self.imaging = False
@@ -653,7 +655,7 @@ class FlightSoftware:
         if self.didymos_recognizer is not None:
             self.didymos_recognizer.shift_time(step_s)
         self._stand_in_cache = None
-        self._cross_check = None
+        self._cross_check = self._didymos_fit = None
         self.autonomous_trajectory, self._autonomous_count = None, -1
         self.tracking.shift_time(step_s)
         self.modes.shift_time(step_s)
@@ -893,7 +895,7 @@ class FlightSoftware:
         self.recognizer = recognizer
         self.stand_in_recognizer, self._stand_in_cache = TrajectoryRecognizer(traj, self.cfg.recognition), None
         self.didymos_recognizer = TrajectoryRecognizer(traj, self.cfg.recognition)
-        self._cross_check = None
+        self._cross_check = self._didymos_fit = None
         self.schedule.reanchor_ca(traj.ca_time_obt_s)
         self.modes.handle(CaEstimate(traj.ca_time_obt_s), obt)
         self._log.append(f"OBT {obt:.2f} s: nominal trajectory loaded: C/A at OBT {traj.ca_time_obt_s:.2f} s, "
@@ -1059,15 +1061,13 @@ class FlightSoftware:
         (``tracking.cross_check_fit_sigma``): Didymos's trajectory then bounds Dimorphos's place to the orbit's
         radius, where ground's nominal, 3 sigma off, carries the pointing away."""
         limit, didymos, m = self.cfg.tracking.didymos_when_unseen_s, self.didymos_recognizer, self.modes
-        tc = self.cfg.tracking
-        seen = self._last_seen_obt if self._last_seen_obt is not None or m.mode != Mode.ACQUISITION \
-            else m.since_obt_s
+        seen = self._last_seen_obt
+        if seen is None and m.mode == Mode.ACQUISITION:
+            seen = m.since_obt_s  # never seen: counted from ACQUISITION's start
         return limit is not None and didymos is not None and seen is not None \
             and self._req is not None and m.mode in (Mode.NOMINAL_TRACKING, Mode.ACQUISITION) \
             and self._tick_s() - seen >= limit \
-            and didymos.measurement_count >= self.cfg.min_recognition_measurements \
-            and didymos.recent_scatter_rad(tc.cross_check_recent) \
-            <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad
+            and didymos.measurement_count >= self.cfg.min_recognition_measurements and self._didymos_fits()
 
     def _recognition_trusted(self) -> bool:
         """Whether Dimorphos's own lines of sight are enough for its recognised trajectory to be trusted: enough
@@ -1093,9 +1093,21 @@ class FlightSoftware:
             agree = estimates_agree(rec.continuous_estimate(), didymos.continuous_estimate(),
                                     self.cfg.targets.centroids_apart_max_m / 1e3,
                                     rec.nominal.speed_km_s, tc.cross_check_sigma)
-            self._cross_check = (key, not agree and didymos.recent_scatter_rad(tc.cross_check_recent)
-                                 <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad)
+            self._cross_check = (key, not agree and self._didymos_fits())
         return self._cross_check[1]
+
+    def _didymos_fits(self) -> bool:
+        """Whether Didymos's recognition fits its own last ``tracking.cross_check_recent`` lines of sight within
+        ``tracking.cross_check_fit_sigma`` of the angle noise (other blobs taken for Didymos scatter them), judged once
+        per measurement count."""
+        didymos = self.didymos_recognizer
+        assert didymos is not None
+        count = didymos.measurement_count
+        if self._didymos_fit is None or self._didymos_fit[0] != count:
+            tc = self.cfg.tracking
+            self._didymos_fit = (count, didymos.recent_scatter_rad(tc.cross_check_recent)
+                                 <= tc.cross_check_fit_sigma * self.cfg.recognition.angle_noise_rad)
+        return self._didymos_fit[1]
 
     def _recognised_trajectory(self) -> NominalTrajectory | None:
         """The trajectory recognised on board, once it is trusted (None before)."""
