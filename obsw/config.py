@@ -474,7 +474,11 @@ class ImagingConfig(Config):
         ge=1,
         description="frames, counted from the last one that saw both bodies, through which their relative offset "
         "still gates the identification while Dimorphos is not seen (merged with Didymos and its ejecta: up to 8 "
-        "frames around C/A-150 s in the closed-loop flybys); 20 frames span 20 s at the approach cadence of 1 Hz",
+        "frames around C/A-150 s in the closed-loop flybys), when Didymos spanned pair_memory_max_didymos_px; a "
+        "smaller (farther) Didymos is remembered longer in proportion (the offset changes at the approach speed over "
+        "the range, and the range is inversely proportional to Didymos's apparent size: 20 frames at 20 px, 40 at "
+        "10 px: a 9 px Didymos forgotten after 20 frames let a brighter fan root be taken for it, held-out run 165 of "
+        "worst-late-near); 20 frames span 20 s at the approach cadence of 1 Hz",
     )
     pair_memory_max_didymos_px: float = Field(
         20.0,

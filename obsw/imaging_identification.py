@@ -901,8 +901,9 @@ def _likeliest(blobs: list[Blob], lights: list[float], place: _Place, reach_px: 
 
 def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | None, Blob | None]:
     """Return the (didymos, dimorphos) that continuity refers to: the previous frame's pair, or the last pair seen
-    when the frames since saw no Dimorphos, for at most ``cfg.pair_memory_frames`` frames and while Didymos is at
-    most ``cfg.pair_memory_max_didymos_px`` across (far enough for the offset to change slowly); else (None, None).
+    when the frames since saw no Dimorphos, while Didymos is at most ``cfg.pair_memory_max_didymos_px`` across (far
+    enough for the offset to change slowly), for ``cfg.pair_memory_frames`` frames at that size and longer in
+    proportion for a smaller one; else (None, None).
     ``previous`` is the previous frame's ``Detections``."""
     if previous is None:
         return None, None
@@ -912,8 +913,11 @@ def reference_pair(previous: object | None, cfg: ImagingConfig) -> tuple[Blob | 
     pair, age = previous.pair, previous.pair_age_frames  # type: ignore[attr-defined]
     if dim is not None and pair is not None and age == 0:
         return pair  # Didymos identified with Dimorphos, not reported (``Identification.didymos_probability``)
-    if dim is None and pair is not None and age < cfg.pair_memory_frames \
-            and pair[0].diameter_px <= cfg.pair_memory_max_didymos_px:
+    if dim is None and pair is not None and pair[0].diameter_px <= cfg.pair_memory_max_didymos_px \
+            and age * max(pair[0].diameter_px, 1) < cfg.pair_memory_frames * cfg.pair_memory_max_didymos_px:
+        # the offset changes at a rate inversely proportional to the range, so proportional to Didymos's size: a
+        # Didymos half as large is remembered twice as long (held-out run 165 of worst-late-near: a 9 px Didymos, its
+        # pair forgotten after 20 frames, and the root of Dimorphos's fan, brighter, taken for it)
         return pair
     return None, None
 
@@ -1456,7 +1460,9 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
             didymos, next_label = _without(regions, didymos if didymos.trimmed_from else root, source, exp, cfg,
                                            place, next_label)
     if dimorphos is not None and exp is not None:
-        dimorphos = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
+        surface = _dimorphos_surface(regions, dimorphos, exp, next_label, place, cfg)
+        far = surface is not dimorphos and _cut_beyond_gate(surface, didymos, exp, cfg)
+        dimorphos, deblended = (None, False) if far else (surface, deblended)
     if dimorphos is not None and place is not None and not _may_hold_lit_part(dimorphos, place):
         # no pixel of it lies where Dimorphos's lit part can be: the only candidate, dust cut to its brightest part
         # where Dimorphos is hidden (behind Didymos's night side), is no Dimorphos
@@ -1597,6 +1603,14 @@ def _brightest_surface_at(regions: Regions | None, chosen: Blob, cands: list[Blo
         if not at_place or surface.mean_dn8 > best.mean_dn8:
             best, at_place = surface, True
     return best
+
+
+def _cut_beyond_gate(surface: Blob, didymos: Blob, exp: Expected, cfg: ImagingConfig) -> bool:
+    """Whether a surface cut out of the region taken for Dimorphos lies beyond the gate (``_dimorphos_gate``): a
+    region holding ejecta is taken by its box (Dimorphos, their source, at one end of it), and its brightest part may
+    be the dust's, beyond the orbit's reach of Didymos (held-out 135/189: the plume's, 50 px from Didymos)."""
+    return _distance(surface.region_centroid_col_row, didymos.region_centroid_col_row) > _dimorphos_gate(didymos, exp,
+                                                                                                        cfg)
 
 
 def _dimorphos_surface(regions: Regions | None, dimorphos: Blob, exp: Expected, next_label: int,

@@ -611,18 +611,23 @@ def test_ejecta_merged_with_dimorphos_are_trimmed_off() -> None:
     assert math.dist(det.dimorphos.centroid_col_row, truth) <= 1.0
 
 
-def test_last_pair_bridges_frames_without_dimorphos() -> None:
+@pytest.mark.parametrize("diameter_px", [7, 10, 20])
+def test_last_pair_bridges_frames_without_dimorphos(diameter_px: int) -> None:
     """After frames where Dimorphos merged (not seen), the last pair still tells Didymos from a plume-inflated
-    Dimorphos with the larger core; once the memory is older than pair_memory_frames, the larger core wins."""
-    did_then = _blob(1, 260.0, 256.0, 40, 7)
+    Dimorphos with the larger core, for pair_memory_frames when Didymos spanned pair_memory_max_didymos_px and
+    longer in proportion to the range for a smaller one (its offset changes as the range does); once older, the
+    larger core wins."""
+    assert CFG.pair_memory_frames == 20 and CFG.pair_memory_max_didymos_px == 20.0  # the figures below
+    last_frame = {7: 57, 10: 39, 20: 19}[diameter_px]  # 20 frames x 20 px / diameter, the last age below it
+    did_then = _blob(1, 260.0, 256.0, 40, diameter_px)
     dim_then = _blob(2, 249.0, 256.0, 6, 3)
     merged = _detections(_blob(1, 257.0, 256.0, 120, 20), None)
     did = _blob(1, 261.0, 257.0, 40, 7)
     dim_plume = _blob(2, 250.0, 256.5, 60, 8)  # Dimorphos and its ejecta: larger than Didymos
-    for age in range(CFG.pair_memory_frames):
+    for age in range(last_frame + 1):
         prev = dataclasses.replace(merged, pair=(did_then, dim_then), pair_age_frames=age)
         assert identify_bodies([did, dim_plume], CFG, prev) == (did, dim_plume)
-    stale = dataclasses.replace(merged, pair=(did_then, dim_then), pair_age_frames=CFG.pair_memory_frames)
+    stale = dataclasses.replace(merged, pair=(did_then, dim_then), pair_age_frames=last_frame + 1)
     assert identify_bodies([did, dim_plume], CFG, stale) == (dim_plume, None)
 
 
