@@ -12,6 +12,7 @@ from __future__ import annotations
 import gc
 import json
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -155,10 +156,11 @@ def centroid_model_file(path: Path) -> dict[str, Any]:
 
 
 def build_campaign(scenario_path: Path, *, seed: int | None = None, fidelity: str | None = None,
-                   centroid_model: Path | None = None, dispersions: Path | None = None,
+                   centroid_model: Path | None = None, dispersions: Path | Sequence[Path] | None = None,
                    in_view_required: float | None = None) -> Campaign:
     """The campaign of a scenario file with the command's options applied: the fidelity, a fitted centroid model,
-    dispersions appended from a file, the in-view requirement. ScenarioError lists every problem."""
+    dispersions appended from one file or several (in their order), the in-view requirement. ScenarioError lists
+    every problem."""
     scenario, timeline = load_run_inputs(scenario_path)
     data = scenario.model_dump(mode="json")
     source = str(scenario_path)
@@ -167,9 +169,9 @@ def build_campaign(scenario_path: Path, *, seed: int | None = None, fidelity: st
     if centroid_model is not None:
         data["universe"]["centroid_model"] = centroid_model_file(centroid_model)
         source += f" + {centroid_model}"
-    if dispersions is not None:
-        data["dispersions"] = data["dispersions"] + dispersions_file(dispersions)
-        source += f" + {dispersions}"
+    for path in [dispersions] if isinstance(dispersions, Path) else dispersions or []:
+        data["dispersions"] = data["dispersions"] + dispersions_file(path)
+        source += f" + {path}"
     if in_view_required is not None:
         data["ground"]["report"]["in_view_required"] = in_view_required
     return Campaign(scenario_from_dict(data, source), timeline, scenario.seed if seed is None else seed)

@@ -300,9 +300,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
     sc = campaign.scenario
     factor = sc.universe.camera.resolution_px / sc.obsw.imaging.binned_size_px
     model, lines = fit_model(FrameSamples.concat(parts), sc.ground.report.centroid_tolerance_px * factor)
+    added = f", dispersions {' + '.join(map(str, args.dispersions))}" if args.dispersions else ""
     header = [f"Centroid-level measurement model fitted by flyby mc-fit on {args.runs} image-level runs of "
-              f"{args.scenario} (campaign seed {campaign.seed}" + (f", dispersions {args.dispersions}"
-                                                                   if args.dispersions else "") + ")", *lines,
+              f"{args.scenario} (campaign seed {campaign.seed}{added})", *lines,
               "Positions in full-resolution px; flyby mc --fidelity centroid --centroid-model FILE uses it."]
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(model_yaml(model, header), encoding="utf-8")

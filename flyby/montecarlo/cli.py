@@ -1,6 +1,6 @@
 """``flyby mc``: run a Monte Carlo campaign of a scenario on Dask, resume it, report it, replay one of its runs.
 
-    flyby mc SCENARIO --runs N --out DIR [--fidelity centroid] [--dispersions FILE] [--scheduler tcp://HOST:8786]
+    flyby mc SCENARIO --runs N --out DIR [--fidelity centroid] [--dispersions FILE ...] [--scheduler tcp://HOST:8786]
     flyby mc SCENARIO --runs N --out DIR --resume       continue a killed or interrupted campaign
     flyby mc --out DIR --replay K                       run K again alone, in one process, against its stored row
     flyby mc --out DIR --report                         rewrite DIR/mc.html from the stored runs
@@ -200,8 +200,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="image: render and process frames (the scenario's default); centroid: the measurement model")
     p.add_argument("--centroid-model", type=Path, default=None, metavar="FILE",
                    help="measurement model fitted by flyby mc-fit (universe: centroid_model: ...)")
-    p.add_argument("--dispersions", type=Path, default=None, metavar="FILE",
-                   help="a YAML file whose dispersions: list is added to the scenario's")
+    p.add_argument("--dispersions", type=Path, nargs="+", default=None, metavar="FILE",
+                   help="YAML files whose dispersions: lists are added to the scenario's, in their order")
     p.add_argument("--in-view-required", type=float, default=None, metavar="FRACTION",
                    help="fraction of frames with the target in view a run needs (default: the scenario's report)")
     p.add_argument("--goal", type=float, default=DEFAULT_GOAL,
@@ -219,7 +219,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--runs", type=int, default=40, help="image-level runs to fit on (default 40)")
     f.add_argument("--out", type=Path, required=True, help="model file to write (YAML)")
     f.add_argument("--seed", type=int, default=None, help="campaign seed (default: the scenario's seed)")
-    f.add_argument("--dispersions", type=Path, default=None, metavar="FILE", help="dispersions to add (YAML)")
+    f.add_argument("--dispersions", type=Path, nargs="+", default=None, metavar="FILE",
+                   help="dispersions to add (YAML files, in their order)")
     f.add_argument("--samples", type=Path, default=None, metavar="DIR",
                    help="where each run's frame samples are kept (default: OUT.samples beside the model file)")
     add_cluster_arguments(f)

@@ -15,12 +15,12 @@ from scipy import stats
 from contracts.clock import SimClock
 from contracts.exitcodes import EXIT_CHECK_FAILED, EXIT_CONFIG, EXIT_OK
 from flyby.cli import main
-from flyby.montecarlo.campaign import Campaign, RunResult, build_campaign
+from flyby.montecarlo.campaign import Campaign, RunResult, build_campaign, dispersions_file
 from flyby.montecarlo.engine import dask_client, run_campaign
 from flyby.montecarlo.progress import Progress
 from flyby.montecarlo.statistics import clopper_pearson, pass_rates
 from flyby.montecarlo.store import STORE_NAME, ResultStore, open_store
-from scenario.dispersions import dispersed_run
+from scenario.dispersions import dispersed_run, drawn_values
 from scenario.model import load_run_inputs
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -210,6 +210,36 @@ def test_flyby_mc_refuses_an_unknown_dispersion_path_before_running(tiny: Path, 
     assert code == EXIT_CONFIG
     assert "invalid campaign (1 problem(s))" in err and "orbit_phase" in err
     assert not (out / "results.sqlite").exists()
+
+
+def test_dispersions_of_several_files_follow_the_scenario_s_in_their_order(tiny: Path, tmp_path: Path) -> None:
+    """``--dispersions A B`` appends A's entries, then B's, after the scenario's own; every run draws each of them, and
+    the scenario's own draw the same values as without the files (each entry has its own stream)."""
+    noise = tmp_path / "noise.yaml"
+    noise.write_text("dispersions:\n  - path: universe.camera.read_noise_e\n    normal: {sigma: 0.2, relative: true}\n")
+    files = [ROOT / "configs" / "dispersions" / "detector-stress.yaml", noise]
+    alone = build_campaign(tiny)
+    both = build_campaign(tiny, dispersions=files)
+    expected = [d["path"] for f in files for d in dispersions_file(f)]
+    paths = [d.path for d in both.scenario.dispersions]
+    assert paths == [d.path for d in alone.scenario.dispersions] + expected
+    _, data, values = drawn_values(both.scenario, both.seed, 3)
+    _, _, own = drawn_values(alone.scenario, alone.seed, 3)
+    assert all(values[key] == value for key, value in own.items())
+    assert 5.0 <= data["universe"]["camera"]["cosmic_ray_flux_cm2_s"] <= 500.0
+    assert 0 <= data["universe"]["camera"]["dead_column_count"] <= 8
+
+
+def test_flyby_mc_takes_several_dispersions_files(tiny: Path, tmp_path: Path) -> None:
+    """``flyby mc ... --dispersions A B`` runs with both files' entries: each stored run has a drawn value for each."""
+    a, b = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    a.write_text("dispersions:\n  - path: universe.camera.read_noise_e\n    normal: {sigma: 0.2, relative: true}\n")
+    b.write_text("dispersions:\n  - path: universe.camera.dead_column_count\n    uniform: {low: 0, high: 8}\n")
+    out = tmp_path / "mc"
+    assert main(["mc", str(tiny), "--runs", "1", "--out", str(out), "--threads", "--dispersions", str(a),
+                 str(b)]) in (EXIT_OK, EXIT_CHECK_FAILED)
+    drawn = ResultStore(out / STORE_NAME).values()[0]
+    assert {"universe.camera.read_noise_e", "universe.camera.dead_column_count"} <= set(drawn)
 
 
 def test_local_workers_keep_the_dynamic_heap(monkeypatch: pytest.MonkeyPatch) -> None:
