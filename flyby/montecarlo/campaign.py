@@ -156,10 +156,10 @@ def centroid_model_file(path: Path) -> dict[str, Any]:
 
 
 def build_campaign(scenario_path: Path, *, seed: int | None = None, fidelity: str | None = None,
-                   centroid_model: Path | None = None, dispersions: Path | Sequence[Path] | None = None,
+                   centroid_model: Path | None = None, dispersions: Sequence[Path] | None = None,
                    in_view_required: float | None = None) -> Campaign:
     """The campaign of a scenario file with the command's options applied: the fidelity, a fitted centroid model,
-    dispersions appended from one file or several (in their order), the in-view requirement. ScenarioError lists
+    dispersions appended from files (in their order), the in-view requirement. ScenarioError lists
     every problem."""
     scenario, timeline = load_run_inputs(scenario_path)
     data = scenario.model_dump(mode="json")
@@ -169,7 +169,7 @@ def build_campaign(scenario_path: Path, *, seed: int | None = None, fidelity: st
     if centroid_model is not None:
         data["universe"]["centroid_model"] = centroid_model_file(centroid_model)
         source += f" + {centroid_model}"
-    for path in [dispersions] if isinstance(dispersions, Path) else dispersions or []:
+    for path in dispersions or ():
         data["dispersions"] = data["dispersions"] + dispersions_file(path)
         source += f" + {path}"
     if in_view_required is not None:

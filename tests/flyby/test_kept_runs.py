@@ -48,9 +48,9 @@ def _replayed(runs: dict[str, Future[Outcome]], name: str) -> RunData:
     return RunData(Path(f"<{name}>"), scenario, Truth.from_records(truth), received_telemetry(received, name))
 
 
-def _assert_centroids_within_10_px(data: RunData) -> None:
+def _assert_centroids_within_10_px(data: RunData, min_count: int = 300) -> None:
     ids, errors = centroid_errors_px(data)
-    assert ids.size >= 300, ids.size
+    assert ids.size >= min_count, ids.size
     worst = int(errors.argmax())
     assert errors[worst] <= 10.0, f"frame {ids[worst]}: {errors[worst]:.2f} px"
 
@@ -175,9 +175,6 @@ def test_worst_late_near_run_165_remembers_the_pair_while_dimorphos_is_merged_wi
     Dimorphos's trajectory recognised off by it, 20.9 px after C/A) keeps every requirement, its Dimorphos centroids
     within 10 px of the truth: the pair of a smaller, farther Didymos is remembered longer."""
     data = _replayed(runs, "worst-late-near-run00165")
-    ids, errors = centroid_errors_px(data)
-    assert ids.size >= 250, ids.size  # Dimorphos, merged with its fan, unseen in many frames far out
-    worst = int(errors.argmax())
-    assert errors[worst] <= 10.0, f"frame {ids[worst]}: {errors[worst]:.2f} px"
+    _assert_centroids_within_10_px(data, min_count=250)  # Dimorphos, merged with its fan, unseen many frames far out
     figs, _ = score_run(data, data.scenario.ground.report)
     assert figs.all_pass, figs
