@@ -1230,7 +1230,38 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
         # a point source the region was taken over for its shape (Didymos must be resolved) stays passed over when
         # the region's parts are point-like: a thin crescent's lit part, cut from the dust around it
         chosen = _choose_didymos(parts, cands, exp, prev_did, prev_dim, cfg, regions, None)[0]
-    return cands, likely, chosen, regions.free_label(next_label)
+    next_label = regions.free_label(next_label)
+    if prev_did is not None and prev_dim is not None and prev_did.diameter_px <= cfg.pair_memory_max_didymos_px \
+            and not _with_companion([chosen], cands, _relative(prev_dim, prev_did), cfg, exp):
+        # only where the pair's offset changes slowly (``reference_pair``): near C/A it sweeps across frames
+        found = _paired_object(regions, didymos, cands, parts, exp, prev_did, prev_dim, cfg, next_label, place)
+        if found is not None:
+            objects, chosen = found
+            cands = [c for c in cands if c not in parts] + objects
+            likely = [c for c in likely if c not in parts] + objects
+            next_label = regions.free_label(next_label)
+    return cands, likely, chosen, next_label
+
+
+def _paired_object(regions: Regions, region: Blob, cands: list[Blob], parts: list[Blob], exp: Expected,
+                   prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig, next_label: int, place: _Place | None
+                   ) -> tuple[list[Blob], Blob] | None:
+    """The region's objects (``Regions.deblended``, in place of its brightest ``parts``) and Didymos among them, when
+    one of them has a companion where the last pair's offset puts Dimorphos (``_choose_didymos``'s continuity) and
+    none of the brightest parts had; else None, the objects' pixels forgotten. A plume's root brighter than Didymos's
+    surface holds every pixel of the brightest cut, Didymos none (held-out run 626 of worst-late-near: a 9 px Didymos
+    beside Dimorphos's fan from 1080 km on), while Didymos, a body with a peak of its own, parts from the fan at some
+    level of the region's light."""
+    every = regions.deblended(region, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label)
+    objects = _near_place([o for o in every if o.area_px >= cfg.min_body_area_px
+                           and o.elongation <= cfg.max_body_elongation], place, exp)
+    if len(objects) > 1:
+        others = [c for c in cands if c not in parts] + objects
+        chosen = _choose_didymos(objects, others, exp, prev_did, prev_dim, cfg, regions, None)[0]
+        if _with_companion([chosen], others, _relative(prev_dim, prev_did), cfg, exp):
+            return objects, chosen
+    _forget(regions, [o for o in every if o is not region])
+    return None
 
 
 def _surface(regions: Regions, blob: Blob, exp: Expected, cfg: ImagingConfig, first_label: int) -> list[Blob]:
