@@ -32,7 +32,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   seen in earlier frames, it is the candidate that has a companion where the pair's relative offset predicts
   Dimorphos, among those holding at least half the light of the best (near C/A, hundreds of noise clumps at the edge
   of a fan of dust always hold some pair at that offset), and a Dimorphos-sized blob (no larger than Dimorphos can
-  be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A). When
+  be) that continues Dimorphos while that offset puts Didymos off the image is Dimorphos alone (near C/A). With
+  none such (Dimorphos merged with its fan, no candidate of its own), it is an extended candidate where that offset
+  puts Didymos from Dimorphos's place, when the place is known to less than the orbit's radius (``_anchored``). When
   Didymos may be off the image (the orbit's reach from Dimorphos's place crosses the edge) and the candidate chosen
   is where the trajectory puts Dimorphos with a lit surface (``surface_pixels``: the dust around it is fainter) under
   the geometric mean of the two bodies' expected areas, it is Dimorphos, cut to its surface, and Didymos is not seen;
@@ -43,7 +45,9 @@ star is longer). Identification uses area, shape and continuity, never a blob's 
   place, those within Didymos's reach of Dimorphos's place only (``_near_place``: a star in the plume's region
   beyond it holds its brightest pixels; none there, the blob stays whole); a blob with room for both is split the
   same way when a part of it is Dimorphos (no larger than Dimorphos can be, or larger, holding ejecta, at the
-  trajectory's place when that place is closer than the orbit's radius).
+  trajectory's place when that place is closer than the orbit's radius). When the part chosen breaks a remembered
+  pair, the blob's deblended objects take the parts' place if one of them continues it (``_paired_object``: a
+  fan's root brighter than Didymos's surface holds all of the brightest pixels; Didymos has a peak of its own).
   The blob taken for Dimorphos, when larger than Dimorphos can be or than the disc of its predicted radius widened
   by the point-spread function's reach (``psf_reach_px``: a small body's light stays within it, ejecta do not), is
   trimmed to its brightest pixels of
@@ -944,10 +948,12 @@ def _with_companion(likely: list[Blob], cands: list[Blob], predicted: tuple[floa
 
 
 def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None, prev_did: Blob | None,
-                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None, place: _Place | None
-                    ) -> tuple[Blob, float]:
+                    prev_dim: Blob | None, cfg: ImagingConfig, regions: Regions | None, place: _Place | None,
+                    anchor: _Place | None = None) -> tuple[Blob, float]:
     """Didymos among the ``likely`` candidates (see the module docstring), with the probability that it is
-    (``_best_didymos``); ``cands`` are all candidates, the frame's stars among them."""
+    (``_best_didymos``); ``cands`` are all candidates, the frame's stars among them. With a remembered pair, one
+    with a companion where its offset puts Dimorphos first, else one where it puts Didymos from Dimorphos's place
+    ``anchor`` (``_anchored``; ``place`` is for the choice among point sources, not given for a region's parts)."""
     stars = None
     if place is not None and exp is not None and regions is not None \
             and not _didymos_resolved(exp, regions, cfg):
@@ -967,7 +973,42 @@ def _choose_didymos(likely: list[Blob], cands: list[Blob], exp: Expected | None,
                       if light >= least or c.mean_dn8 - regions.threshold_dn8 >= surface]
         if paired:
             didymos, probability = _best_didymos(paired, exp, regions, cfg, place, stars)
+        else:
+            anchored = _anchored(likely, exp, prev_did, prev_dim, cfg, regions, anchor)
+            if anchored:
+                didymos, probability = _best_didymos(anchored, exp, regions, cfg, place, stars)
     return didymos, probability
+
+
+def _anchored(likely: list[Blob], exp: Expected | None, prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig,
+              regions: Regions | None, place: _Place | None) -> list[Blob]:
+    """The ``likely`` candidates where the last pair's offset puts Didymos from Dimorphos's ``place`` (its lit part's
+    expected centroid, as a region centroid is), within ``_relative_jump_px`` and the place's error: extended, no
+    larger than Didymos can be, while Didymos is resolved and the pair's offset changes slowly (Didymos at most
+    ``cfg.pair_memory_max_didymos_px`` across, as for ``reference_pair``), and nearer there than to the place, when
+    the place is known to less than the orbit's radius (it then tells Dimorphos from Didymos, as in ``identify``).
+    Continuity without a companion: a
+    Dimorphos merged with its fan is no candidate of its own, but the trajectory knows where it is (held-out run 626
+    of worst-late-near: at 1000 km the fan's root, brighter than Didymos, taken for it)."""
+    if place is None or exp is None or regions is None or prev_did.diameter_px > cfg.pair_memory_max_didymos_px \
+            or place.radius_px >= exp.orbit_radius_max or not _didymos_resolved(exp, regions, cfg):
+        return []
+    rel = _relative(prev_dim, prev_did)
+    at = (place.lit_col_row[0] - rel[0], place.lit_col_row[1] - rel[1])
+    error = place.sigma_px * cfg.prediction_sigma
+    # nearer Didymos's expected centroid than Dimorphos's: the place's error moves both, so a fan's root beside
+    # Dimorphos may lie within it from Didymos's too
+    return [c for c in likely if c.area_px <= exp.didymos_area_max and not _point_source(regions, c, cfg)
+            and _distance(c.region_centroid_col_row, at) <= _relative_jump_px(c, cfg, exp) + error
+            and _distance(c.region_centroid_col_row, at) < _distance(c.region_centroid_col_row, place.lit_col_row)]
+
+
+def _continued(didymos: Blob, cands: list[Blob], exp: Expected | None, prev_did: Blob, prev_dim: Blob,
+               cfg: ImagingConfig, regions: Regions | None, place: _Place | None) -> bool:
+    """Whether a Didymos continues the last pair: a candidate where its offset puts Dimorphos (``_with_companion``),
+    or Didymos where it puts it from Dimorphos's place (``_anchored``)."""
+    return bool(_with_companion([didymos], cands, _relative(prev_dim, prev_did), cfg, exp)
+                or _anchored([didymos], exp, prev_did, prev_dim, cfg, regions, place))
 
 
 @dataclass(frozen=True, slots=True)
@@ -1224,15 +1265,16 @@ def _split(regions: Regions, didymos: Blob, cands: list[Blob], likely: list[Blob
     likely = [c for c in likely if c is not didymos] + parts
     # past every label the cut gave (the parts too small or long to be bodies too): a later cut never reuses one;
     # the place chose the region among stars, not between its parts (Didymos, Dimorphos and ejecta, all there)
-    chosen = _choose_didymos(parts if placed else likely, cands, exp, prev_did, prev_dim, cfg, regions, None)[0]
+    chosen = _choose_didymos(parts if placed else likely, cands, exp, prev_did, prev_dim, cfg, regions, None,
+                             place)[0]
     if chosen not in parts and _didymos_resolved(exp, regions, cfg) and _point_source(regions, chosen, cfg) \
             and not _point_source(regions, didymos, cfg):
         # a point source the region was taken over for its shape (Didymos must be resolved) stays passed over when
         # the region's parts are point-like: a thin crescent's lit part, cut from the dust around it
-        chosen = _choose_didymos(parts, cands, exp, prev_did, prev_dim, cfg, regions, None)[0]
+        chosen = _choose_didymos(parts, cands, exp, prev_did, prev_dim, cfg, regions, None, place)[0]
     next_label = regions.free_label(next_label)
     if prev_did is not None and prev_dim is not None and prev_did.diameter_px <= cfg.pair_memory_max_didymos_px \
-            and not _with_companion([chosen], cands, _relative(prev_dim, prev_did), cfg, exp):
+            and not _continued(chosen, cands, exp, prev_did, prev_dim, cfg, regions, place):
         # only where the pair's offset changes slowly (``reference_pair``): near C/A it sweeps across frames
         found = _paired_object(regions, didymos, cands, parts, exp, prev_did, prev_dim, cfg, next_label, place)
         if found is not None:
@@ -1247,8 +1289,7 @@ def _paired_object(regions: Regions, region: Blob, cands: list[Blob], parts: lis
                    prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig, next_label: int, place: _Place | None
                    ) -> tuple[list[Blob], Blob] | None:
     """The region's objects (``Regions.deblended``, in place of its brightest ``parts``) and Didymos among them, when
-    one of them has a companion where the last pair's offset puts Dimorphos (``_choose_didymos``'s continuity) and
-    none of the brightest parts had; else None, the objects' pixels forgotten. A plume's root brighter than Didymos's
+    one of them continues the last pair (``_continued``) and the brightest parts' choice did not; else None, the objects' pixels forgotten. A plume's root brighter than Didymos's
     surface holds every pixel of the brightest cut, Didymos none (held-out run 626 of worst-late-near: a 9 px Didymos
     beside Dimorphos's fan from 1080 km on), while Didymos, a body with a peak of its own, parts from the fan at some
     level of the region's light."""
@@ -1257,8 +1298,8 @@ def _paired_object(regions: Regions, region: Blob, cands: list[Blob], parts: lis
                            and o.elongation <= cfg.max_body_elongation], place, exp)
     if len(objects) > 1:
         others = [c for c in cands if c not in parts] + objects
-        chosen = _choose_didymos(objects, others, exp, prev_did, prev_dim, cfg, regions, None)[0]
-        if _with_companion([chosen], others, _relative(prev_dim, prev_did), cfg, exp):
+        chosen = _choose_didymos(objects, others, exp, prev_did, prev_dim, cfg, regions, None, place)[0]
+        if _continued(chosen, others, exp, prev_did, prev_dim, cfg, regions, place):
             return objects, chosen
     _forget(regions, [o for o in every if o is not region])
     return None
@@ -1391,7 +1432,7 @@ def identify(blobs: tuple[Blob, ...] | list[Blob], cfg: ImagingConfig, previous:
         likely = _near_place(cands, place, exp)
         if not likely:
             return Identification(None, None)
-    didymos, probability = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place)
+    didymos, probability = _choose_didymos(likely, cands, exp, prev_did, prev_dim, cfg, regions, place, place)
     taken = didymos
     placed = _placed(likely, exp, regions, cfg, place)
     may_be_out = place is not None and exp is not None and _didymos_may_be_out(place, exp, cfg.binned_size_px)

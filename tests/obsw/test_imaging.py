@@ -653,6 +653,29 @@ def test_a_blob_beside_a_thin_crescent_is_a_piece_of_it() -> None:
     assert identify_bodies([round_did, piece], CFG) == (round_did, piece)
 
 
+@pytest.mark.parametrize(("peak_dn", "axis_deg", "separation_px", "seed"), [
+    (6000.0, -60.0, 23.0, 0), (6000.0, -75.0, 20.0, 1),  # Didymos's piece among the region's brightest parts
+    (8000.0, -60.0, 20.0, 2), (12000.0, -75.0, 20.0, 3), (12000.0, -60.0, 23.0, 4),  # none of it there
+])
+def test_didymos_beside_a_fan_brighter_than_it_is_found_by_the_remembered_pair(
+        peak_dn: float, axis_deg: float, separation_px: float, seed: int) -> None:
+    """A 9 px Didymos merged with the fan of a Dimorphos 10-12 px away, the fan's root 2.4-5 times as bright as
+    Didymos's surface (held-out run 626 of worst-late-near at 1000 km): with the last pair remembered and Dimorphos's
+    place known to 5 px, Didymos is reported within 2 px of its centre, not at the fan's root (8.5-10 px off before,
+    with or without the pair)."""
+    sun = (-0.67, 0.0, -0.74)
+    did = SyntheticBody(540.0, 512.0, 8.0, 2500.0)
+    dim = SyntheticBody(540.0 - separation_px, 512.0, 8.0 / 4.75, 2500.0)
+    frame = synthetic_frame(np.random.default_rng(seed), bodies=(did, dim), sun_camera=sun, n_stars=0,
+                            n_hot_pixels=0, plume_from=1, plume_peak_dn=peak_dn, plume_length_px=60.0,
+                            plume_axis_deg=axis_deg, plume_half_angle_deg=40.0)
+    td, tm = _truth_512(did), _truth_512(dim)
+    previous = _detections(_blob(1, td[0] + 0.5, td[1], 45, 8), _blob(2, tm[0] + 0.5, tm[1] - 1.0, 3, 2))
+    det = process_frame(frame, CFG, previous, prediction=_pair_prediction((did, dim), sun))
+    assert det.didymos is not None
+    assert math.dist(det.didymos.centroid_col_row, td) <= 2.0, det.didymos
+
+
 def test_last_pair_is_not_remembered_near_closest_approach() -> None:
     """A remembered pair whose Didymos spanned more than pair_memory_max_didymos_px does not gate the next frame."""
     did_then = _blob(1, 260.0, 256.0, 2000, 60)
