@@ -626,6 +626,16 @@ class ImagingConfig(Config):
         "body not a sphere), one holding Didymos's limb or the plume's core does not (the Monte Carlo cases: 0.8-1.3 "
         "radii)",
     )
+    limb_fit_circle_error_radii: float = Field(
+        0.35,
+        ge=0,
+        description="how far the fitted circle's centre may lie from the body's centre, in predicted radii (the "
+        "nominal flyby: up to 0.35, the body not a sphere): where the cut lies off the predicted place (by more than "
+        "its uncertainty and centroid_noise_px) and the circle does too, the circle is taken when it is off the place "
+        "by no more than that allowance and this many radii, and nearer the place than the cut (held-out run 272 of "
+        "worst-late-near at C/A-3 s: the cut on the plume's root above the body 12.1 px off a place known to 4 px and "
+        "13.95 px off the centre, the circle 6.4 px off the place and 3.3 px off the centre)",
+    )
     lit_limb_min_disagreement_radii: float = Field(
         1.0,
         ge=0,

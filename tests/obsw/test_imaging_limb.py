@@ -255,7 +255,9 @@ def test_at_70_to_90_deg_of_phase_the_limb_keeps_the_reports_on_the_body() -> No
     phase correction of a lit crescent's centroid, and with the limb fitted only up to 70 deg they reached 10 px on
     these frames and 11.4 on another 20), and a cut one radius off towards Didymos is moved within 3 px of the
     centre (2.3 measured, 7.1 with the phase correction) or, where the check does not run (the predicted place past
-    90 deg), the limb does not step clearly enough or its circle is off the place, left as it was."""
+    90 deg) or the limb does not step clearly enough, left as it was; where the circle is off the place but nearer it
+    than the cut (``limb_fit_circle_error_radii``), moved nearer the centre (5.7-7.9 px against 11-15 px: at this
+    phase the dark limb does not step against the sky and the circle strays)."""
     cases = _transits(phase_deg=(70.0, 90.0), seeds=36, stream=2030)
     assert len(cases) >= 12
     for k, (scene, prediction, frame, det) in enumerate(cases):
@@ -269,7 +271,10 @@ def test_at_70_to_90_deg_of_phase_the_limb_keeps_the_reports_on_the_body() -> No
                              region_centroid_col_row=tuple(np.add(truth, r * towards)))
         moved, _ = limb_corrected(wrong, binned, prediction, CFG, 2.9)
         assert moved is not None
-        assert moved == wrong or math.dist(moved.centroid_col_row, truth) <= 3.0, (k, scene.phase_deg, moved, truth)
+        off = math.dist(moved.centroid_col_row, truth)
+        assert moved == wrong or off <= 3.0 or off < math.dist(wrong.centroid_col_row, truth) \
+            and math.dist(moved.centroid_col_row, prediction.dimorphos_col_row) \
+            < math.dist(wrong.centroid_col_row, prediction.dimorphos_col_row), (k, scene.phase_deg, moved, truth)
 
 
 def test_without_a_prediction_or_a_cut_nothing_is_fitted() -> None:
