@@ -987,9 +987,9 @@ def _anchored(likely: list[Blob], exp: Expected | None, prev_did: Blob, prev_dim
     larger than Didymos can be, while Didymos is resolved and the pair's offset changes slowly (Didymos at most
     ``cfg.pair_memory_max_didymos_px`` across, as for ``reference_pair``), and nearer there than to the place, when
     the place is known to less than the orbit's radius (it then tells Dimorphos from Didymos, as in ``identify``).
-    Continuity without a companion: a
-    Dimorphos merged with its fan is no candidate of its own, but the trajectory knows where it is (held-out run 626
-    of worst-late-near: at 1000 km the fan's root, brighter than Didymos, taken for it)."""
+    Continuity without a companion: a Dimorphos merged with its fan is no candidate of its own, but the trajectory
+    knows where it is (held-out run 626 of worst-late-near: at 1000 km the fan's root, brighter than Didymos, taken
+    for it)."""
     if place is None or exp is None or regions is None or prev_did.diameter_px > cfg.pair_memory_max_didymos_px \
             or place.radius_px >= exp.orbit_radius_max or not _didymos_resolved(exp, regions, cfg):
         return []
@@ -1289,10 +1289,10 @@ def _paired_object(regions: Regions, region: Blob, cands: list[Blob], parts: lis
                    prev_did: Blob, prev_dim: Blob, cfg: ImagingConfig, next_label: int, place: _Place | None
                    ) -> tuple[list[Blob], Blob] | None:
     """The region's objects (``Regions.deblended``, in place of its brightest ``parts``) and Didymos among them, when
-    one of them continues the last pair (``_continued``) and the brightest parts' choice did not; else None, the objects' pixels forgotten. A plume's root brighter than Didymos's
-    surface holds every pixel of the brightest cut, Didymos none (held-out run 626 of worst-late-near: a 9 px Didymos
-    beside Dimorphos's fan from 1080 km on), while Didymos, a body with a peak of its own, parts from the fan at some
-    level of the region's light."""
+    one of them continues the last pair (``_continued``) and the brightest parts' choice did not; else None, the
+    objects' pixels forgotten. A plume's root brighter than Didymos's surface holds every pixel of the brightest cut,
+    Didymos none (held-out run 626 of worst-late-near: a 9 px Didymos beside Dimorphos's fan from 1080 km on), while
+    Didymos, a body with a peak of its own, parts from the fan at some level of the region's light."""
     every = regions.deblended(region, cfg.deblend_levels, cfg.deblend_min_flux_fraction, next_label)
     objects = _near_place([o for o in every if o.area_px >= cfg.min_body_area_px
                            and o.elongation <= cfg.max_body_elongation], place, exp)
