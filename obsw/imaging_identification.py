@@ -998,9 +998,11 @@ def _anchored(likely: list[Blob], exp: Expected | None, prev_did: Blob, prev_dim
     error = place.sigma_px * cfg.prediction_sigma
     # nearer Didymos's expected centroid than Dimorphos's: the place's error moves both, so a fan's root beside
     # Dimorphos may lie within it from Didymos's too
-    return [c for c in likely if c.area_px <= exp.didymos_area_max and not _point_source(regions, c, cfg)
+    # the point-source test last: it reads the blob's pixels, the others are a few comparisons
+    return [c for c in likely if c.area_px <= exp.didymos_area_max
             and _distance(c.region_centroid_col_row, at) <= _relative_jump_px(c, cfg, exp) + error
-            and _distance(c.region_centroid_col_row, at) < _distance(c.region_centroid_col_row, place.lit_col_row)]
+            and _distance(c.region_centroid_col_row, at) < _distance(c.region_centroid_col_row, place.lit_col_row)
+            and not _point_source(regions, c, cfg)]
 
 
 def _continued(didymos: Blob, cands: list[Blob], exp: Expected | None, prev_did: Blob, prev_dim: Blob,

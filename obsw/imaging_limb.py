@@ -255,13 +255,13 @@ def limb_corrected(blob: Blob | None, image: np.ndarray, prediction: FramePredic
     # it must be where the prediction puts Dimorphos: a circle near the cut but off the place is another body's limb
     # or the plume's edge (the nominal flyby at C/A+3 s: 12.6 px from a place known to 5.2 px, 13 px off)
     clear = fit.score >= cfg.limb_fit_min_contrast * fit.window_median
-    if clear and allowed < math.dist(centre, place) \
-            <= allowed + cfg.limb_fit_circle_error_radii * prediction.dimorphos_radius_px \
-            and math.dist(centre, place) < math.dist(blob.centroid_col_row, place):
+    off = math.dist(centre, place)
+    if clear and allowed < off <= allowed + cfg.limb_fit_circle_error_radii * prediction.dimorphos_radius_px \
+            and off < math.dist(blob.centroid_col_row, place):
         # the cut off the place too, and farther: the circle's own error (the body not a sphere) may put it beyond
         # the place's allowance, a cut of the plume's root beside the body lies a radius off
         return blob._replace(centroid_col_row=centre), fit.samples
-    if not clear or math.dist(centre, place) > allowed:
+    if not clear or off > allowed:
         # no limb at the place (an eclipsed Dimorphos beside the plume's edge: worst-late-near's envelope, roll 0
         # phase 270, 18.6 px off)
         sun = phase_offset_px(prediction.sun_camera, place, 1.0, fov_deg, n)
